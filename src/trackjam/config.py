@@ -1,0 +1,374 @@
+"""The scenario configuration: every parameter of the paper declared once, typed, with its unit
+and the paper's symbol, and validated (unknown keys are errors).
+
+A scenario is read from YAML or TOML, from a built-in preset, and can be amended with dotted
+``key=value`` overrides; all three paths end in :func:`validate_scenario`, so they fail alike.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from trackjam.errors import ConfigError
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Prob = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+Vec3 = tuple[Finite, Finite, Finite]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+class Area(_Model):
+    """The surveillance box; agents may not leave it, the target is reflected at its walls."""
+
+    low: Vec3 = Field((0.0, 0.0, 0.0), description="lower corner [m]")
+    high: Vec3 = Field((100.0, 100.0, 100.0), description="upper corner [m]")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Area":
+        for k in range(3):
+            if not self.high[k] > self.low[k]:
+                raise ValueError("high must exceed low on every axis")
+        return self
+
+
+class Stochastic(_Model):
+    """Bernoulli Markov existence of the truth target (Section III-A table)."""
+
+    birth_prob: Prob = Field(0.02, description="p_b: probability the target is born at a step")
+    survival_prob: Prob = Field(0.98, description="p_s: probability the target survives a step")
+
+
+class Response(_Model):
+    """The target's fail-safe under jamming (ours, beyond the paper)."""
+
+    threshold_db: Finite = Field(-40.0, description="received power at the target that jams it [dBW]")
+    steps: int = Field(3, ge=1, description="consecutive jammed steps before the fail-safe")
+    action: Literal["land", "hover", "return"] = Field("land", description="fail-safe behaviour")
+    speed: PosFloat = Field(2.0, description="speed while landing or returning [m/step]")
+    home: Vec3 | None = Field(None, description="home point for `return` [m]; default: area's low corner at z=0")
+
+
+class Target(_Model):
+    initial: tuple[Finite, Finite, Finite, Finite, Finite, Finite] | None = Field(
+        (20.0, 20.0, 20.0, 1.5, 2.0, 1.7),
+        description="x_0 = [x, y, z, vx, vy, vz] [m, m/s]; null: position uniform in the area, velocity uniform in +-filter.birth_speed",
+    )
+    appears: int = Field(1, ge=1, description="scripted existence: first step present")
+    disappears: int | None = Field(None, ge=1, description="scripted existence: last step present (null: never)")
+    occlusions: list[tuple[int, int]] = Field(
+        default_factory=list, description="inclusive step ranges: present but undetectable"
+    )
+    accel_var: NonNegFloat = Field(0.5, description="Sigma_v = accel_var * I3, acceleration covariance [m^2/s^4]")
+    stochastic: Stochastic | None = Field(None, description="Bernoulli Markov existence instead of the script")
+    response: Response | None = Field(None, description="jamming response (ours); null: off, as in the paper")
+    walls: Literal["reflect", "leave"] = Field(
+        "reflect", description="at the area's walls the target is reflected (ours) or leaves and disappears"
+    )
+
+    @field_validator("occlusions")
+    @classmethod
+    def _ranges(cls, v: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        for a, b in v:
+            if a < 1 or b < a:
+                raise ValueError(f"occlusion range [{a}, {b}] must satisfy 1 <= first <= last")
+        return v
+
+    @model_validator(mode="after")
+    def _order(self) -> "Target":
+        if self.disappears is not None and self.disappears < self.appears:
+            raise ValueError("disappears must be >= appears")
+        return self
+
+
+class Agents(_Model):
+    initial: list[Vec3] = Field(
+        [(30.0, 30.0, 30.0), (20.0, 10.0, 10.0), (10.0, 15.0, 15.0)],
+        min_length=1,
+        description="u_0^j, initial agent positions [m]; N = their number",
+    )
+    initial_aim: Vec3 | None = Field(None, description="where the antennas point at t=0 [m]; default: target's initial position")
+    radial_steps: list[PosFloat] = Field([1.0, 3.0, 5.0], min_length=1, description="Delta_R, radial step sizes [m]")
+    n_inclination: int = Field(8, ge=1, description="N_phi; inclination step is 2*pi/N_phi (MODEL.md)")
+    n_azimuth: int = Field(8, ge=1, description="N_theta; azimuth step is 2*pi/N_theta")
+
+
+def _parse_level(v: Any) -> float | None:
+    if v is None or (isinstance(v, str) and v.strip().lower() == "off") or v is False:
+        return None
+    if isinstance(v, bool):
+        raise ValueError("a power level is a number in dBW or 'off'")
+    if isinstance(v, str):
+        try:
+            v = float(v)
+        except ValueError:
+            raise ValueError(f"power level {v!r} is neither a number in dBW nor 'off'") from None
+    if not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ValueError(f"power level {v!r} must be a finite number in dBW or 'off'")
+    return float(v)
+
+
+class Antenna(_Model):
+    height: PosFloat = Field(40.0, description="h_a, cone height along its axis [m]")
+    opening_angle_deg: float = Field(80.0, description="theta_a, full opening angle of the cone [deg], in (0, 180)")
+    r0: PosFloat = Field(6.0, description="R_0, radius of full gain [m]")
+    path_loss_exponent: PosFloat = Field(2.0, description="n_e, path-loss exponent")
+    p_d_max: Prob = Field(0.95, description="p_D^max, detection probability at full power within R_0")
+    power_levels_db: list[Any] = Field(
+        ["off", -50.0, -7.0, 0.5], min_length=1, description="L, transmit levels [dBW]; 'off' is 0 W"
+    )
+    interference_limit_db: Finite = Field(-40.0, description="delta, interference tolerance of every agent [dBW]")
+    pointing: Literal["truth", "aim"] = Field("truth", description="where the antenna points while transmitting")
+
+    @field_validator("opening_angle_deg")
+    @classmethod
+    def _angle(cls, v: float) -> float:
+        if not math.isfinite(v) or not 0 < v < 180:
+            raise ValueError(f"opening angle must be in (0, 180) deg, got {v}")
+        return v
+
+    @field_validator("power_levels_db")
+    @classmethod
+    def _levels(cls, v: list[Any]) -> list[Any]:
+        parsed = [_parse_level(x) for x in v]
+        if all(p is None for p in parsed):
+            raise ValueError("at least one power level must be on")
+        out = ["off" if p is None else p for p in parsed]
+        watts = [0.0 if p is None else 10 ** (p / 10) for p in parsed]
+        if any(b <= a for a, b in zip(watts, watts[1:])):
+            raise ValueError("power levels must be strictly increasing")
+        return out
+
+    @property
+    def levels_w(self) -> list[float]:
+        return [0.0 if p == "off" else 10 ** (float(p) / 10) for p in self.power_levels_db]
+
+    @property
+    def delta_w(self) -> float:
+        return 10 ** (self.interference_limit_db / 10)
+
+
+class Sensor(_Model):
+    noise_std: Vec3 = Field(
+        (0.8, math.pi / 50, math.pi / 50),
+        description="Sigma_w diagonal as standard deviations: [rho m, azimuth rad, inclination rad]",
+    )
+    clutter_rate: NonNegFloat = Field(3.0, description="lambda_c, mean clutter points per agent per step")
+
+    @field_validator("noise_std")
+    @classmethod
+    def _positive(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if any(s <= 0 for s in v):
+            raise ValueError("noise standard deviations must be > 0")
+        return v
+
+
+class Filter(_Model):
+    birth_prob: Prob = Field(0.02, description="p_b used by the filter")
+    survival_prob: Prob = Field(0.98, description="p_s used by the filter")
+    particles: int = Field(10000, ge=10, description="particles of the surviving density")
+    birth_particles: int = Field(2000, ge=1, description="particles of the birth density per step")
+    birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t")
+    birth_speed: NonNegFloat = Field(3.0, description="v_b: birth velocity uniform in +-v_b per axis [m/s]")
+    accel_var: NonNegFloat | None = Field(None, description="filter's Sigma_v scale; null: the target's")
+
+
+class Fusion(_Model):
+    feedback: bool = Field(True, description="agents redraw particles from the fused estimate")
+
+
+class Control(_Model):
+    solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="controller")
+    at_least: int = Field(2, ge=1, description="n of Xi^N_n: at least n of N agents detect")
+    constraints: bool = Field(True, description="enforce the interference constraints, Eq. (13)")
+    samples: int = Field(10000, ge=1, description="n_s, GRASP joint samples per iteration")
+    iterations: int = Field(100, ge=1, description="n_I, GRASP iterations")
+    neighbours: int = Field(6, ge=2, description="GRASP: size of the list of nearest displacements u-, u+ are drawn from (ours)")
+
+
+class Metrics(_Model):
+    ospa_order: PosFloat = Field(2.0, description="p of OSPA")
+    ospa_cutoff: PosFloat = Field(10.0, description="c of OSPA [m]")
+
+
+class Scenario(_Model):
+    name: str = Field("scenario", description="name of the scenario")
+    steps: int = Field(30, ge=1, description="number of steps of dT = 1 s")
+    seed: int = Field(1, ge=0, description="the one seed every random choice flows from")
+    area: Area = Field(default_factory=Area)
+    target: Target = Field(default_factory=Target)
+    agents: Agents = Field(default_factory=Agents)
+    antenna: Antenna = Field(default_factory=Antenna)
+    sensor: Sensor = Field(default_factory=Sensor)
+    filter: Filter = Field(default_factory=Filter)
+    fusion: Fusion = Field(default_factory=Fusion)
+    control: Control = Field(default_factory=Control)
+    metrics: Metrics = Field(default_factory=Metrics)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Scenario":
+        n = len(self.agents.initial)
+        if self.control.at_least > n:
+            raise ValueError(f"control.at_least ({self.control.at_least}) exceeds the number of agents ({n})")
+        lo, hi = self.area.low, self.area.high
+        for j, u in enumerate(self.agents.initial):
+            if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):
+                raise ValueError(f"agents.initial[{j}] {list(u)} lies outside the area")
+        if self.target.initial is not None:
+            x = self.target.initial
+            if any(not lo[k] <= x[k] <= hi[k] for k in range(3)):
+                raise ValueError(f"target.initial position {list(x[:3])} lies outside the area")
+        return self
+
+    # Derived quantities used everywhere.
+    @property
+    def n_agents(self) -> int:
+        return len(self.agents.initial)
+
+
+# --------------------------------------------------------------------------------------------
+# Loading, presets and overrides
+
+
+def _format_error(err: ValidationError) -> str:
+    parts = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith("function-"))
+        msg = e["msg"]
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key"
+        msg = msg.removeprefix("Value error, ")
+        parts.append(f"{loc}: {msg}" if loc else msg)
+    return "; ".join(parts)
+
+
+def validate_scenario(data: Any, source: str = "scenario") -> Scenario:
+    """Validate a mapping as a :class:`Scenario`, raising :class:`ConfigError` with one line."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: the scenario must be a mapping of keys, got {type(data).__name__}")
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(f"{source}: {_format_error(err)}") from None
+
+
+def preset_names() -> list[str]:
+    files = resources.files("trackjam.presets")
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
+
+
+def _preset_data(name: str) -> dict:
+    return yaml.safe_load(resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text())
+
+
+def _read_file(path: Path) -> dict:
+    if not path.exists():
+        raise ConfigError(f"{path}: no such file (and no preset of that name; see `trackjam presets`)")
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a folder, not a scenario file")
+    text = path.read_text()
+    try:
+        if path.suffix.lower() == ".toml":
+            data = tomllib.loads(text)
+        else:
+            data = yaml.safe_load(text)
+    except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
+        first = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ConfigError(f"{path}: not valid {'TOML' if path.suffix.lower() == '.toml' else 'YAML'}: {first}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: the scenario must be a mapping of keys")
+    return data
+
+
+def _parse_value(text: str) -> Any:
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+def set_dotted(data: dict, key: str, value: Any) -> None:
+    """Set ``data[a][b][c] = value`` for ``key = "a.b.c"``, creating sections as needed."""
+    parts = key.strip().split(".")
+    if not all(parts):
+        raise ConfigError(f"--set {key!r}: empty key")
+    node = data
+    for p in parts[:-1]:
+        nxt = node.get(p)
+        if nxt is None:
+            nxt = {}
+            node[p] = nxt
+        if not isinstance(nxt, dict):
+            raise ConfigError(f"--set {key}: {p} is not a section")
+        node = nxt
+    node[parts[-1]] = value
+
+
+def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
+    """Apply dotted ``key=value`` overrides (values parsed as YAML) to a copy of a mapping."""
+    data = _deep_copy(data)
+    for item in overrides or []:
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r}: expected key=value")
+        key, _, value = item.partition("=")
+        set_dotted(data, key, _parse_value(value))
+    return data
+
+
+def _deep_copy(d: Any) -> Any:
+    if isinstance(d, dict):
+        return {k: _deep_copy(v) for k, v in d.items()}
+    if isinstance(d, list):
+        return [_deep_copy(v) for v in d]
+    return d
+
+
+def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
+    """Raw mapping of a preset name or a file, and a label for messages."""
+    text = str(name_or_path)
+    if isinstance(name_or_path, str) and text in preset_names():
+        return _preset_data(text), f"preset {text}"
+    return _read_file(Path(text)), text
+
+
+def load_scenario(
+    name_or_path: str | Path = "paper-fig3", overrides: list[str] | None = None, **fields: Any
+) -> Scenario:
+    """Load a preset or a YAML/TOML file, apply ``--set`` style overrides, and validate.
+
+    Keyword ``fields`` set keys too, ``__`` standing for the dot
+    (``load_scenario("paper-fig3", steps=5, control__solver="exact")``).
+    """
+    data, label = load_scenario_data(name_or_path)
+    data = apply_overrides(data, overrides)
+    for key, value in fields.items():
+        set_dotted(data, key.replace("__", "."), value)
+    return validate_scenario(data, label)
+
+
+def scenario_to_dict(s: Scenario) -> dict:
+    return s.model_dump(mode="json")
+
+
+def scenario_to_yaml(s: Scenario) -> str:
+    return yaml.safe_dump(scenario_to_dict(s), sort_keys=False, default_flow_style=None)

@@ -1,0 +1,9 @@
+"""Errors a user can fix: the CLI prints them as one line and exits with status 2."""
+
+
+class TrackjamError(Exception):
+    """Base of the errors that name a user's mistake."""
+
+
+class ConfigError(TrackjamError, ValueError):
+    """A scenario, an option or a file the user gave is not valid."""

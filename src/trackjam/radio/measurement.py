@@ -1,0 +1,85 @@
+"""The range-finder's measurement model (Eqs. 6-8): z = h(x, u) + w, with Poisson clutter
+uniform over the measurement space.
+
+z = [rho, azimuth, inclination]: azimuth = atan2(dy, dx) in (-pi, pi], inclination =
+atan2(sqrt(dx^2 + dy^2), dz) in [0, pi]. Noise standard deviations are Sigma_w's diagonal.
+Clutter is uniform over rho in [0, h_a / cos(theta_a / 2)], azimuth in (-pi, pi], inclination in
+[0, pi]; its density is the reciprocal of that box's volume.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def wrap_angle(a):
+    """Wrap angles to (-pi, pi]."""
+    a = np.asarray(a, dtype=float)
+    w = np.mod(a + np.pi, 2 * np.pi) - np.pi
+    return np.where(w == -np.pi, np.pi, w)
+
+
+def h(x, u) -> np.ndarray:
+    """Eq. (7): [rho, azimuth, inclination] of position ``x`` seen from ``u``."""
+    d = np.asarray(x, dtype=float)[..., :3] - np.asarray(u, dtype=float)
+    rho = np.linalg.norm(d, axis=-1)
+    az = np.arctan2(d[..., 1], d[..., 0])
+    inc = np.arctan2(np.hypot(d[..., 0], d[..., 1]), d[..., 2])
+    return np.stack([rho, az, inc], axis=-1)
+
+
+def h_inverse(z, u) -> np.ndarray:
+    """Position whose measurement from ``u`` is ``z`` (inverse of :func:`h`)."""
+    z = np.asarray(z, dtype=float)
+    rho, az, inc = z[..., 0], z[..., 1], z[..., 2]
+    d = np.stack([rho * np.sin(inc) * np.cos(az), rho * np.sin(inc) * np.sin(az), rho * np.cos(inc)], axis=-1)
+    return np.asarray(u, dtype=float) + d
+
+
+def clutter_bounds(max_range: float) -> np.ndarray:
+    """Rows [low, high] of the measurement space over which clutter is uniform."""
+    return np.array([[0.0, max_range], [-np.pi, np.pi], [0.0, np.pi]])
+
+
+def clutter_density(max_range: float) -> float:
+    """p_c(y): the uniform clutter density over the measurement space [1 / (m rad^2)]."""
+    return 1.0 / (max_range * 2 * np.pi * np.pi)
+
+
+def sample_clutter(rng: np.random.Generator, rate: float, max_range: float) -> np.ndarray:
+    """Poisson(``rate``) clutter points uniform over the measurement space, shape (n, 3)."""
+    n = rng.poisson(rate)
+    b = clutter_bounds(max_range)
+    pts = rng.uniform(b[:, 0], b[:, 1], size=(n, 3))
+    # azimuth on (-pi, pi]
+    pts[:, 1] = np.where(pts[:, 1] == -np.pi, np.pi, pts[:, 1])
+    return pts
+
+
+def sample_scan(
+    rng: np.random.Generator,
+    x: np.ndarray | None,
+    u: np.ndarray,
+    p_d: float,
+    noise_std,
+    clutter_rate: float,
+    max_range: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One scan of one agent: a target measurement with probability ``p_d`` (when ``x`` is
+    given: present and detectable) plus clutter. Returns ``(Z (m, 3), from_target (m,))``;
+    the target's measurement, when there is one, comes first.
+
+    The random draws happen in a fixed order whatever the outcome, so one seed gives one scan.
+    """
+    detect_draw = rng.uniform()
+    noise = rng.normal(0.0, 1.0, size=3) * np.asarray(noise_std, dtype=float)
+    clutter = sample_clutter(rng, clutter_rate, max_range)
+    rows = []
+    if x is not None and detect_draw < p_d:
+        z = h(x, u) + noise
+        z[1] = wrap_angle(z[1])
+        rows.append(z)
+    from_target = np.zeros(len(rows) + len(clutter), dtype=bool)
+    from_target[: len(rows)] = True
+    Z = np.vstack(rows + [clutter]) if rows else clutter
+    return Z.reshape(-1, 3), from_target
