@@ -56,6 +56,7 @@ class TruthTarget:
     detectable: bool = False
     jammed_run: int = 0  # consecutive steps with received power >= the response threshold
     downed_at: int | None = None  # step the fail-safe started
+    gone: bool = False  # it flew out of the area (walls: leave); a script does not bring it back
     _pending_initial: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -89,7 +90,7 @@ class TruthTarget:
         birth = self.draw_birth()
         moved = cv_step(self.state if self.state is not None else birth, self.rng, tg.accel_var)
         if tg.stochastic is None:
-            now = self._scripted_exists(t)
+            now = self._scripted_exists(t) and not self.gone
             if now and not self.exists:
                 self.state = self._pending_initial.copy() if self._pending_initial is not None else birth
                 self._pending_initial = None
@@ -114,7 +115,7 @@ class TruthTarget:
             (self.state[:3] >= self.low - 1e-9) & (self.state[:3] <= self.high + 1e-9)
         ):
             # only with walls == "leave": it has flown out
-            self.exists, self.state = False, None
+            self.exists, self.state, self.gone = False, None, True
         self.detectable = self.exists and not self._occluded(t)
 
     def _move(self, moved: np.ndarray) -> np.ndarray:

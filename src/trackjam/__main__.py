@@ -1,0 +1,3 @@
+from trackjam.cli import app
+
+app(prog_name="trackjam")

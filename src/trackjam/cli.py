@@ -1,0 +1,199 @@
+"""The `trackjam` command line. Heavy imports live inside the commands so `--help` is fast.
+
+A mistake of the user's (bad key, bad value, missing file, unusable --out) is one line on
+stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from pathlib import Path
+from typing import Callable, Optional
+
+import typer
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Cooperative tracking and radio-jamming of a rogue drone by a team of pursuer drones.",
+)
+
+SCENARIO_HELP = "A preset name (see `trackjam presets`) or a YAML/TOML scenario file."
+SET_HELP = "Override a scenario key, dotted: --set antenna.opening_angle_deg=120 (repeatable)."
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"trackjam: error: {message}", err=True)
+    raise typer.Exit(2)
+
+
+def user_errors(fn: Callable) -> Callable:
+    """Turn the errors a user can fix into one line and exit status 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from trackjam.errors import TrackjamError
+
+        try:
+            return fn(*args, **kwargs)
+        except TrackjamError as err:
+            _fail(str(err))
+        except KeyboardInterrupt:
+            typer.echo("trackjam: interrupted", err=True)
+            raise typer.Exit(130)
+
+    return wrapper
+
+
+def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
+    from trackjam.config import load_scenario
+
+    fields = {} if seed is None else {"seed": seed}
+    return load_scenario(scenario, overrides or [], **fields)
+
+
+@app.command()
+@user_errors
+def presets() -> None:
+    """List the built-in scenario presets."""
+    from trackjam.config import load_scenario, preset_names
+
+    for name in preset_names():
+        s = load_scenario(name)
+        typer.echo(
+            f"{name:<16} {s.n_agents} agents, {s.steps} steps, solver {s.control.solver}, "
+            f"theta_a {s.antenna.opening_angle_deg:g} deg"
+        )
+
+
+@app.command("show-config")
+@user_errors
+def show_config(
+    scenario: str = typer.Argument("paper-fig3", help=SCENARIO_HELP),
+    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+) -> None:
+    """Print the fully resolved scenario as YAML."""
+    from trackjam.config import scenario_to_yaml
+
+    typer.echo(scenario_to_yaml(_load(scenario, set_)), nl=False)
+
+
+@app.command()
+@user_errors
+def validate(
+    file: str = typer.Argument(..., help=SCENARIO_HELP),
+    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+) -> None:
+    """Check a scenario file; print `ok` or one line naming the key and the problem."""
+    s = _load(file, set_)
+    typer.echo(f"ok: {s.name}, {s.n_agents} agents, {s.steps} steps")
+
+
+def _step_progress(total: int, label: str):
+    """A rich bar on a terminal, one plain line per step otherwise. Returns (callback, close)."""
+    if sys.stdout.isatty():
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        task = bar.add_task(label, total=total)
+        bar.start()
+        return (lambda t, n: bar.update(task, completed=t)), bar.stop
+
+    def line(t: int, n: int) -> None:
+        print(f"{label}: step {t}/{n}", flush=True)
+
+    return line, lambda: None
+
+
+@app.command()
+@user_errors
+def run(
+    scenario: str = typer.Argument("paper-fig3", help=SCENARIO_HELP),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed of every random choice (default: the scenario's)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/<name>-seed<seed>)."),
+    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="Write run.png and replay.html."),
+) -> None:
+    """Run one scenario end to end and write its logs, figure and 3D replay."""
+    s = _load(scenario, set_, seed)
+    out = out or Path("runs") / f"{s.name}-seed{s.seed}"
+    from trackjam.simulation.output import check_out_dir
+
+    check_out_dir(out, s)  # before any work: nothing is computed for a folder we cannot use
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from trackjam.simulation.loop import simulate
+    from trackjam.simulation.output import write_run
+
+    cb, close = _step_progress(s.steps, s.name)
+    try:
+        result = simulate(s, progress=cb)
+    finally:
+        close()
+    files = write_run(result, out, figures=figures)
+    m = result.summary
+    table = Table(title=f"{s.name}  seed {s.seed}  solver {s.control.solver}")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    table.add_row("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")
+    table.add_row("jamming incidents per agent", " ".join(str(v) for v in m["jamming_incidents"]))
+    table.add_row("mean power at target [W]", f"{m['target_received_w_mean']:.3g}")
+    table.add_row("mean interference at agents [W]", f"{m['agent_received_w_mean']:.3g}")
+    table.add_row("mean transmit power [W]", f"{m['transmit_w_mean']:.3g}")
+    table.add_row("steps with fused existence > 0.5", f"{m['tracked_steps']}/{m['steps']}")
+    table.add_row("time per step [ms]", f"{1000 * m['step_s_mean']:.1f}")
+    if m.get("downed_at") is not None:
+        table.add_row("target downed at step", str(m["downed_at"]))
+    Console(width=100).print(table)
+    typer.echo(f"wrote {len(files)} files to {out}")
+
+
+@app.command()
+@user_errors
+def experiment(
+    name: str = typer.Argument(..., help="table1 | constraints | solvers"),
+    trials: int = typer.Option(20, "--trials", help="Trials per configuration (the paper: 20)."),
+    steps: int = typer.Option(30, "--steps", help="Steps per trial (the paper: 30)."),
+    seed: int = typer.Option(0, "--seed", help="Experiment seed; each trial's seed derives from it."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: CPU count)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, tcp://HOST:PORT."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
+    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+) -> None:
+    """Run one of the paper's Monte Carlo experiments (resumable; local pool or Dask)."""
+    from trackjam.experiments.cli import experiment_command
+
+    experiment_command(
+        name=name,
+        trials=trials,
+        steps=steps,
+        seed=seed,
+        workers=workers,
+        scheduler=scheduler,
+        out=out or Path("runs") / f"experiment-{name}",
+        overrides=set_ or [],
+    )
+
+
+@app.command()
+@user_errors
+def bench(
+    quick: bool = typer.Option(False, "--quick", help="Fewer repetitions, for a smoke check."),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the figures as JSON here."),
+    only: Optional[list[str]] = typer.Option(None, "--only", help="filter | control | run (repeatable)."),
+) -> None:
+    """Measure the speed of the filter, the solvers and a whole run."""
+    from trackjam.benchmarks.report import run_benchmarks
+
+    run_benchmarks(quick=quick, json_out=json_out, only=only or [])
+
+
+def main() -> None:  # pragma: no cover
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

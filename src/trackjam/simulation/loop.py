@@ -1,0 +1,219 @@
+"""The agents' loop: one step in the order MODEL.md fixes.
+
+truth moves -> each agent predicts -> agents exchange predictions and form x_bar -> controls
+are chosen (Eqs. 11-13) -> agents move and transmit -> each receives its scan and updates ->
+the team fuses (covariance intersection) -> metrics.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+import trackjam
+from trackjam.config import Scenario
+from trackjam.control.solve import build_problem, fallback_levels, solve
+from trackjam.estimation.fusion import fuse
+from trackjam.metrics.ospa import ospa
+from trackjam.radio.antenna import (
+    AntennaModel,
+    detection_probability,
+    interference_matrix,
+    received_power,
+)
+from trackjam.radio.measurement import sample_scan
+from trackjam.simulation.agent import Agent, Exchange, planning_aim
+from trackjam.simulation.logs import RunLog
+from trackjam.world.moves import scenario_displacements
+from trackjam.world.target import TruthTarget
+
+
+@dataclass
+class RunResult:
+    """Everything one run produced: the resolved scenario, the logs as column arrays, and the
+    summary figures (see :func:`summarise`)."""
+
+    scenario: Scenario
+    steps: dict[str, np.ndarray]
+    agents: dict[str, np.ndarray]
+    measurements: dict[str, np.ndarray]
+    summary: dict
+
+
+def _seed_tree(scenario: Scenario) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]]]:
+    """One root seed -> the truth's stream and three streams per agent (filter, sensor, plan)."""
+    root = np.random.SeedSequence(scenario.seed)
+    truth_seed, agents_seed = root.spawn(2)
+    per_agent = [s.spawn(3) for s in agents_seed.spawn(scenario.n_agents)]
+    return truth_seed, per_agent
+
+
+def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = None) -> RunResult:
+    """Run one scenario end to end and return its logs and summary."""
+    s = scenario
+    ant = AntennaModel.from_scenario(s)
+    D = scenario_displacements(s)
+    low, high = np.asarray(s.area.low, float), np.asarray(s.area.high, float)
+    truth_seed, agent_seeds = _seed_tree(s)
+    truth = TruthTarget(s, np.random.default_rng(truth_seed))
+
+    initial_aim = s.agents.initial_aim
+    if initial_aim is None:
+        initial_aim = truth._pending_initial[:3]
+    agents = [
+        Agent.create(j, s, u, initial_aim, agent_seeds[j]) for j, u in enumerate(s.agents.initial)
+    ]
+    exchange = Exchange()
+    log = RunLog(n_agents=len(agents))
+    delta = ant.delta_w
+
+    for t in range(1, s.steps + 1):
+        t0 = time.perf_counter()
+        # 1. the truth moves
+        truth.step(t)
+        x_true = truth.position
+
+        # 2-3. predictions are exchanged; every agent forms the same x_bar from them
+        predictions = exchange.all_to_all([a.predict() for a in agents])
+        x_bar = planning_aim(predictions)
+
+        # 4. controls
+        positions = np.array([a.position for a in agents])
+        ts = time.perf_counter()
+        if x_bar is not None:
+            problem = build_problem(
+                positions, x_bar, D, ant, low, high, s.control.at_least, s.control.constraints
+            )
+            sol = solve(
+                problem,
+                s.control.solver,
+                [a.plan_rng for a in agents],
+                samples=s.control.samples,
+                iterations=s.control.iterations,
+                neighbours=s.control.neighbours,
+            )
+            moves, levels, objective = sol.move, sol.level, sol.objective
+            for a in agents:
+                a.aim = x_bar.copy()
+        else:
+            aims = np.array([a.aim for a in agents])
+            moves = np.zeros(len(agents), dtype=np.int64)
+            levels = fallback_levels(positions, aims, ant, s.control.constraints)
+            objective = np.nan
+        solve_s = time.perf_counter() - ts
+
+        # 5. move and transmit
+        prev = positions
+        for a, k, lv in zip(agents, moves, levels):
+            a.position = a.position + D[k]
+            a.level_index = int(lv)
+        positions = np.array([a.position for a in agents])
+        if s.antenna.pointing == "truth" and x_true is not None:
+            points = np.repeat(x_true[None, :], len(agents), axis=0)
+        else:
+            points = np.array([a.aim for a in agents])
+        level_w = ant.levels_w[np.asarray(levels, dtype=np.int64)]
+        R = interference_matrix(positions, points, level_w, ant)
+        interference = R.sum(axis=1)
+        # an occluded target is shielded from the radio: no detection, no jamming (ours)
+        if truth.detectable:
+            p_d = detection_probability(x_true, positions, points, level_w, ant)
+            to_target = received_power(x_true, positions, points, level_w, ant)
+        else:
+            p_d = np.zeros(len(agents))
+            to_target = np.zeros(len(agents))
+        truth.apply_jamming(t, float(to_target.sum()))
+
+        # 6. scans and filter updates
+        scans = []
+        posteriors = []
+        for j, a in enumerate(agents):
+            Z, from_target = sample_scan(
+                a.sensor_rng,
+                x_true if truth.detectable else None,
+                a.position,
+                float(p_d[j]),
+                s.sensor.noise_std,
+                s.sensor.clutter_rate,
+                ant.max_range,
+            )
+            scans.append((Z, from_target))
+            posteriors.append(a.update(Z, points[j], float(level_w[j])))
+        own_existence = np.array([m.estimate.existence for m in posteriors])
+
+        # 7. fusion, sent back to every agent
+        posteriors = exchange.all_to_all(posteriors)
+        fused = fuse([m.estimate for m in posteriors])
+        if s.fusion.feedback:
+            for a in agents:
+                a.filter.reset_to(fused.existence, fused.mean, fused.cov)
+
+        # 8. metrics
+        est = fused.mean[:3] if (fused.existence > 0.5 and fused.mean is not None) else None
+        truth_set = x_true if truth.detectable else None
+        err = ospa(truth_set, est, c=s.metrics.ospa_cutoff, p=s.metrics.ospa_order)
+        step_s = time.perf_counter() - t0
+
+        log.add_step(
+            t=t,
+            target_exists=truth.exists,
+            target_detectable=truth.detectable,
+            truth=x_true,
+            existence=fused.existence,
+            estimate=est,
+            ospa=err,
+            aim=x_bar,
+            objective=objective,
+            target_received_w=float(to_target.sum()),
+            solve_s=solve_s,
+            step_s=step_s,
+        )
+        log.add_agents(
+            t=t,
+            prev=prev,
+            pos=positions,
+            level_index=np.asarray(levels),
+            power_w=level_w,
+            point=points,
+            p_d=p_d,
+            detected=np.array([bool(f.any()) for _, f in scans]),
+            n_measurements=np.array([len(Z) for Z, _ in scans]),
+            existence=own_existence,
+            interference_w=interference,
+            jammed=interference >= delta,
+            to_target_w=to_target,
+        )
+        log.add_measurements(t, scans)
+        if progress is not None:
+            progress(t, s.steps)
+
+    steps, agents_log, meas = log.columns()
+    summary = summarise(steps, agents_log, s, downed_at=truth.downed_at)
+    return RunResult(s, steps, agents_log, meas, summary)
+
+
+def summarise(steps: dict, agents: dict, scenario: Scenario, downed_at: int | None = None) -> dict:
+    """The run's table: the paper's Fig. 4/5 metrics for one trial."""
+    n = scenario.n_agents
+    jammed = agents["jammed"].reshape(-1, n)
+    incidents = jammed.sum(axis=0)
+    return {
+        "name": scenario.name,
+        "seed": scenario.seed,
+        "version": trackjam.__version__,
+        "steps": int(scenario.steps),
+        "solver": scenario.control.solver,
+        "ospa_mean": float(np.mean(steps["ospa"])),
+        "jamming_incidents": [int(v) for v in incidents],
+        "jamming_incidents_per_agent": float(incidents.mean()),
+        "target_received_w_mean": float(np.mean(steps["target_received_w"])),
+        "agent_received_w_mean": float(np.mean(agents["interference_w"])),
+        "transmit_w_mean": float(np.mean(agents["power_w"])),
+        "solve_s_mean": float(np.mean(steps["solve_s"])),
+        "step_s_mean": float(np.mean(steps["step_s"])),
+        "tracked_steps": int(np.sum(steps["existence"] > 0.5)),
+        "downed_at": downed_at,
+    }

@@ -1,0 +1,97 @@
+"""Writing a run to its output folder, safely.
+
+The folder is checked before any work starts: a file, an unwritable place, or a non-empty
+folder that holds anything but an earlier run of the very same resolved scenario is refused,
+so nothing of the user's is overwritten. Each file is written to a temporary name and renamed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+from trackjam.config import Scenario, scenario_to_yaml
+from trackjam.errors import ConfigError
+
+RUN_FILES = (
+    "scenario.yaml",
+    "summary.json",
+    "steps.parquet",
+    "agents.parquet",
+    "measurements.parquet",
+    "run.png",
+    "replay.html",
+)
+
+
+def check_out_dir(out: Path, scenario: Scenario) -> None:
+    """Refuse an output folder that would lose or corrupt something (one-line ConfigError)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out}: is a file, not a folder")
+    if out.is_dir():
+        entries = [p.name for p in out.iterdir()]
+        if entries:
+            previous = out / "scenario.yaml"
+            same = previous.is_file() and previous.read_text() == scenario_to_yaml(scenario)
+            strangers = sorted(set(entries) - set(RUN_FILES))
+            if not same or strangers:
+                what = "another scenario's run" if previous.is_file() else "other files"
+                raise ConfigError(
+                    f"--out {out}: folder is not empty and holds {what}; choose a new or empty folder"
+                )
+    parent = out if out.is_dir() else _existing_parent(out)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError(f"--out {out}: {parent} is not writable")
+
+
+def _existing_parent(p: Path) -> Path:
+    p = p.absolute()
+    while not p.exists():
+        p = p.parent
+    if not p.is_dir():
+        raise ConfigError(f"--out {p}: is a file, not a folder")
+    return p
+
+
+def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_run(result, out: Path, figures: bool = True) -> list[Path]:
+    """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``; return the files."""
+    from trackjam.simulation.logs import write_parquet
+
+    out = Path(out)
+    check_out_dir(out, result.scenario)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    def put(name: str, write: Callable[[Path], None]) -> None:
+        atomic_write(out / name, write)
+        written.append(out / name)
+
+    put("scenario.yaml", lambda p: p.write_text(scenario_to_yaml(result.scenario)))
+    put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
+    put("steps.parquet", lambda p: write_parquet(result.steps, p))
+    put("agents.parquet", lambda p: write_parquet(result.agents, p))
+    put("measurements.parquet", lambda p: write_parquet(result.measurements, p))
+    if figures:
+        from trackjam.viz.figure import plot_run
+        from trackjam.viz.replay import write_replay
+
+        put("run.png", lambda p: plot_run(result.steps, result.agents, result.scenario, p))
+        put("replay.html", lambda p: write_replay(result.steps, result.agents, result.scenario, p))
+    return written

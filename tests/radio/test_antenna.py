@@ -1,0 +1,112 @@
+"""The conic antenna: membership, detection probability (Eq. 9), received power (Eq. 10)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from trackjam.config import load_scenario
+from trackjam.radio.antenna import (
+    AntennaModel,
+    cone_gain,
+    detection_probability,
+    inside_cone,
+    interference_matrix,
+    kernel_cone_gain,
+    path_gain,
+    received_power,
+)
+
+ANT = AntennaModel.from_scenario(load_scenario("paper-fig3"))  # h_a 40 m, theta_a 80 deg
+APEX = np.zeros(3)
+UP = np.array([0.0, 0.0, 1.0])  # aim point straight above: axis +z
+TAN40 = np.tan(np.deg2rad(40))
+
+
+@pytest.mark.parametrize(
+    "p, inside",
+    [
+        ((0, 0, 0), True),  # the apex
+        ((0, 0, 20), True),  # on the axis
+        ((0, 0, 40), True),  # centre of the base, s = h_a
+        ((20 * TAN40, 0, 20), True),  # on the rim at mid height
+        ((20 * TAN40 + 0.01, 0, 20), False),  # just outside the rim
+        ((0, 0, 40.01), False),  # beyond h_a along the axis
+        ((0, 0, -1), False),  # behind the apex
+        ((40 * TAN40, 0, 40), True),  # rim of the base
+        ((40 * TAN40, 0, 40.5), False),  # beyond the base
+    ],
+)
+def test_cone_membership_on_hand_worked_points(p, inside):
+    assert bool(inside_cone(np.array(p, float), APEX, UP, ANT.height, ANT.half_angle)) is inside
+
+
+def test_height_is_measured_along_the_axis_whatever_the_direction():
+    aim = np.array([1.0, 1.0, 1.0])
+    axis = aim / np.linalg.norm(aim)
+    assert inside_cone(39.9 * axis, APEX, aim, ANT.height, ANT.half_angle)
+    assert not inside_cone(40.1 * axis, APEX, aim, ANT.height, ANT.half_angle)
+
+
+def test_p_d_is_continuous_at_r0_and_follows_the_path_loss_beyond():
+    r0 = ANT.r0
+    below = detection_probability([0, 0, r0 - 1e-9], APEX, UP, ANT.l_max, ANT)
+    above = detection_probability([0, 0, r0 + 1e-9], APEX, UP, ANT.l_max, ANT)
+    assert below == pytest.approx(ANT.p_d_max) and above == pytest.approx(ANT.p_d_max, rel=1e-6)
+    far = detection_probability([0, 0, 2 * r0], APEX, UP, ANT.l_max, ANT)
+    assert far == pytest.approx(ANT.p_d_max * 0.5**ANT.n_e)
+
+
+def test_p_d_is_zero_outside_the_cone_and_when_off():
+    assert detection_probability([30, 0, 1], APEX, UP, ANT.l_max, ANT) == 0.0
+    assert detection_probability([0, 0, -3], APEX, UP, ANT.l_max, ANT) == 0.0
+    assert detection_probability([0, 0, 3], APEX, UP, 0.0, ANT) == 0.0
+
+
+def test_p_d_scales_with_the_level_ratio_in_watts():
+    p = np.array([0, 0, 12.0])
+    for lw in ANT.levels_w:
+        expected = lw / ANT.l_max * ANT.p_d_max * (ANT.r0 / 12.0) ** 2
+        assert detection_probability(p, APEX, UP, lw, ANT) == pytest.approx(expected)
+
+
+def test_received_power_scales_with_the_level():
+    p = np.array([1.0, 2.0, 15.0])
+    base = received_power(p, APEX, UP, 1.0, ANT)
+    assert base == pytest.approx((6 / np.linalg.norm(p)) ** 2)
+    for lw in ANT.levels_w:
+        assert received_power(p, APEX, UP, lw, ANT) == pytest.approx(lw * base)
+
+
+def test_interference_matrix_is_the_received_power_of_each_sender_at_each_receiver():
+    u = np.array([[10, 10, 10], [10, 10, 20], [10, 10, 35], [80, 80, 80]], float)
+    aims = np.array([[10, 10, 50]] * 4, float)
+    lv = ANT.levels_w[[3, 2, 1, 3]]
+    R = interference_matrix(u, aims, lv, ANT)
+    assert np.all(np.diag(R) == 0)
+    for i in range(4):
+        for j in range(4):
+            if i != j:
+                assert R[i, j] == pytest.approx(received_power(u[i], u[j], aims[j], lv[j], ANT))
+    assert R[1, 0] > 0 and R[0, 1] == 0  # agent 0 points up at agent 1, not the reverse
+    assert R[3].sum() == 0
+
+
+def test_path_gain_is_one_within_r0():
+    assert np.all(path_gain(np.linspace(0, 6, 7), 6.0, 2.0) == 1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    p=st.tuples(*[st.floats(-60, 60)] * 3),
+    u=st.tuples(*[st.floats(-10, 10)] * 3),
+    a=st.tuples(*[st.floats(-60, 60)] * 3),
+)
+def test_compiled_kernel_matches_numpy(p, u, a):
+    p, u, a = (np.array(v, float) for v in (p, u, a))
+    ref = cone_gain(p, u, a, ANT)
+    d = a - u
+    n = np.linalg.norm(d)
+    ax = d / n if n > 1e-12 else np.array([0, 0, 1.0])
+    got = kernel_cone_gain(*p, *u, *ax, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e)
+    assert got == pytest.approx(float(ref), abs=1e-12)
