@@ -1,0 +1,278 @@
+"""The figure of one run, after the paper's Fig. 3 (a)-(f), drawn from the run's logs.
+
+Panels: (a) 3D trajectories, (b) transmit level per agent, (c) who jams whom, (d) received
+powers in dB (target and interference, with delta), (e) fused existence probability, (f) OSPA.
+Steps where the target exists but cannot be detected (occlusion) are shaded on every time axis.
+
+The helpers at the top turn the logs into arrays of the paper's quantities and are shared with
+:mod:`trackjam.viz.replay`. Agents are shown 1-based ("agent 1" is log row ``agent == 0``), as
+in the paper.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+
+from trackjam.config import Scenario  # noqa: E402
+from trackjam.radio.antenna import AntennaModel, interference_matrix  # noqa: E402
+
+Columns = Mapping[str, np.ndarray]
+
+# Black, cyan and red are taken by the truth, the estimate and the target's received power.
+AGENT_COLOURS = [
+    "#1f77b4", "#9467bd", "#ff7f0e", "#2ca02c", "#8c564b", "#e377c2", "#bcbd22", "#7f7f7f",
+]
+TRUTH_COLOUR = "black"
+ESTIMATE_COLOUR = "#00bcd4"
+TARGET_POWER_COLOUR = "#d62728"
+OCCLUSION_COLOUR = "0.55"
+
+
+def agent_colour(j: int) -> str:
+    """Colour of agent ``j`` (0-based), the same in the figure and the replay."""
+    return AGENT_COLOURS[j % len(AGENT_COLOURS)]
+
+
+def agent_table(agents: Columns, column: str, T: int, N: int) -> np.ndarray:
+    """The per-agent column as a (T, N) array, row t-1, column j, whatever the log's row order."""
+    out = np.full((T, N), np.nan)
+    t = np.asarray(agents["t"], dtype=int)
+    j = np.asarray(agents["agent"], dtype=int)
+    out[t - 1, j] = np.asarray(agents[column], dtype=float)
+    return out
+
+
+def agent_positions(agents: Columns, T: int, N: int, prefix: str = "") -> np.ndarray:
+    """(T, N, 3) positions: ``prefix=""`` after the move u_t, ``"prev_"`` before it, ``"point_"`` aims."""
+    return np.stack([agent_table(agents, f"{prefix}{ax}", T, N) for ax in "xyz"], axis=-1)
+
+
+def steps_xyz(steps: Columns, prefix: str) -> np.ndarray:
+    """(T, 3) of ``truth_``, ``est_`` or ``aim_`` columns (NaN rows where absent)."""
+    return np.stack([np.asarray(steps[f"{prefix}{ax}"], dtype=float) for ax in "xyz"], axis=-1)
+
+
+def run_shape(steps: Columns, agents: Columns) -> tuple[int, int]:
+    """(T, N): number of steps and of agents in the logs."""
+    return len(np.asarray(steps["t"])), int(np.max(agents["agent"])) + 1
+
+
+def interference_per_step(agents: Columns, scenario: Scenario) -> np.ndarray:
+    """(T, N, N) ``R[t-1, i, j]``: power agent i receives from agent j at step t [W] (Eq. 13's terms).
+
+    Recomputed with :func:`interference_matrix` from the logged positions after the move, the
+    points the antennas aimed at and the transmit powers, so it is what the loop measured.
+    """
+    ant = AntennaModel.from_scenario(scenario)
+    T = int(np.max(agents["t"]))
+    N = int(np.max(agents["agent"])) + 1
+    u = agent_positions(agents, T, N)
+    point = agent_positions(agents, T, N, "point_")
+    level_w = np.nan_to_num(agent_table(agents, "power_w", T, N))
+    # An antenna that is off has no meaningful aim: give it one (it sends nothing anyway).
+    point = np.where(np.isfinite(point), point, u + np.array([0.0, 0.0, 1.0]))
+    return np.stack([interference_matrix(u[k], point[k], level_w[k], ant) for k in range(T)])
+
+
+def level_labels(scenario: Scenario) -> list[str]:
+    """Tick labels of the transmit levels L: "off" or "<l> dBW"."""
+    return ["off" if p == "off" else f"{float(p):g} dBW" for p in scenario.antenna.power_levels_db]
+
+
+def occluded_steps(steps: Columns) -> np.ndarray:
+    """Steps where the target exists but nobody can detect it."""
+    ex = np.asarray(steps["target_exists"], dtype=bool)
+    det = np.asarray(steps["target_detectable"], dtype=bool)
+    return np.asarray(steps["t"])[ex & ~det]
+
+
+def to_db(w: np.ndarray) -> np.ndarray:
+    """10 log10(w) in dBW; -inf for 0 W, NaN stays NaN."""
+    w = np.asarray(w, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 10 * np.log10(w)
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Path) -> Path:
+    """Draw panels (a)-(f) of the paper's Fig. 3 for one run and save them as a PNG at ``path``.
+
+    ``steps`` and ``agents`` are the run's logs (column name -> 1-D array). Returns the path.
+    """
+    path = Path(path)
+    T, N = run_shape(steps, agents)
+    t = np.asarray(steps["t"], dtype=float)
+    fig = plt.figure(figsize=(17, 11), layout="constrained")
+    outer = fig.add_gridspec(1, 2, width_ratios=[1.0, 1.15])
+    ax3d = fig.add_subplot(outer[0], projection="3d")
+    right = outer[1].subgridspec(5, 1, height_ratios=[1.1, 1.0, 1.3, 1.0, 1.0])
+    axes = [fig.add_subplot(right[0])]
+    axes += [fig.add_subplot(right[k], sharex=axes[0]) for k in range(1, 5)]
+    ax_level, ax_jam, ax_power, ax_exist, ax_ospa = axes
+
+    _panel_trajectories(ax3d, steps, agents, scenario, T, N)
+    _panel_levels(ax_level, agents, scenario, t, T, N)
+    _panel_jamming(ax_jam, agents, scenario, T, N)
+    _panel_powers(ax_power, steps, agents, scenario, t, T, N)
+    _panel_existence(ax_exist, steps, agents, t, T, N)
+    _panel_ospa(ax_ospa, steps, scenario, t)
+
+    occ = occluded_steps(steps)
+    for ax in axes:
+        for k in occ:
+            ax.axvspan(k - 0.5, k + 0.5, color=OCCLUSION_COLOUR, alpha=0.18, lw=0, zorder=0)
+        ax.set_xlim(0.5, T + 0.5)
+        ax.grid(True, alpha=0.3)
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+    for ax in axes[:-1]:
+        ax.tick_params(labelbottom=False)
+    ax_ospa.set_xlabel("time step t  (dT = 1 s)")
+    if len(occ):
+        ax_level.legend(
+            handles=[Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded")],
+            loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False,
+        )
+    fig.suptitle(f"trackjam run: {scenario.name}  ({N} agents, {T} steps, solver {scenario.control.solver})")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
+    """(a) truth (black), fused estimate (cyan), agents u_t (coloured); o = start, ^ = end."""
+    truth = steps_xyz(steps, "truth_")
+    est = steps_xyz(steps, "est_")
+    u = agent_positions(agents, T, N)
+    u0 = agent_positions(agents, T, N, "prev_")[0]
+    ax.plot(*truth.T, color=TRUTH_COLOUR, lw=2, label="target (truth)")
+    ax.plot(*est.T, color=ESTIMATE_COLOUR, lw=1.6, marker=".", ms=5, label="target (fused estimate)")
+    first = np.flatnonzero(np.isfinite(truth[:, 0]))
+    if len(first):
+        ax.scatter(*truth[first[0]], color=TRUTH_COLOUR, marker="*", s=120, depthshade=False)
+    for j in range(N):
+        path = np.vstack([u0[j], u[:, j]])
+        c = agent_colour(j)
+        ax.plot(*path.T, color=c, lw=1.6, label=f"agent {j + 1}")
+        ax.scatter(*path[0], color=c, marker="o", s=60, edgecolor="k", depthshade=False)
+        ax.scatter(*path[-1], color=c, marker="^", s=60, edgecolor="k", depthshade=False)
+    lo, hi = scenario.area.low, scenario.area.high
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_title("(a) trajectories  (o start, ^ end, * target appears)")
+    ax.legend(loc="upper left", fontsize=8)
+
+
+def _panel_levels(ax, agents, scenario, t, T, N) -> None:
+    """(b) transmit level l_t^j per agent, as an index into L."""
+    idx = agent_table(agents, "level_index", T, N)
+    offsets = (np.arange(N) - (N - 1) / 2) * min(0.08, 0.4 / max(N, 1))
+    for j in range(N):
+        ax.step(t, idx[:, j] + offsets[j], where="mid", color=agent_colour(j), lw=1.6,
+                marker="o", ms=3.5, label=f"agent {j + 1}")
+    labels = level_labels(scenario)
+    ax.set_yticks(range(len(labels)), labels)
+    ax.set_ylim(-0.5, len(labels) - 0.5)
+    ax.set_ylabel("transmit level")
+    ax.set_title("(b) transmit power level per agent", loc="left", fontsize=10)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 0.75), fontsize=8, frameon=False)
+
+
+def _panel_jamming(ax, agents, scenario, T, N) -> None:
+    """(c) one row per receiver i: a marker in sender j's colour at steps where j alone jams i
+    (R_ij >= delta), a black ring where only the total sum_j R_ij >= delta does."""
+    delta = AntennaModel.from_scenario(scenario).delta_w
+    R = interference_per_step(agents, scenario)
+    total = R.sum(axis=2)
+    spread = min(0.3, 0.6 / max(N - 1, 1))
+    for i in range(N):
+        ax.axhline(i, color="0.85", lw=0.8, zorder=0)
+        senders = [j for j in range(N) if j != i]
+        for k, j in enumerate(senders):
+            dy = (k - (len(senders) - 1) / 2) * spread / 2
+            hit = np.flatnonzero(R[:, i, j] >= delta) + 1
+            ax.scatter(hit, np.full(len(hit), i + dy), color=agent_colour(j), marker="s", s=28,
+                       edgecolor="k", lw=0.4, zorder=3)
+        only_sum = np.flatnonzero((total[:, i] >= delta) & ~(R[:, i, :] >= delta).any(axis=1)) + 1
+        ax.scatter(only_sum, np.full(len(only_sum), i), facecolor="none", edgecolor="k",
+                   marker="o", s=60, lw=1.2, zorder=3)
+    ax.set_yticks(range(N), [f"agent {i + 1}" for i in range(N)])
+    ax.set_ylim(N - 0.5, -0.5)
+    ax.set_ylabel("jammed agent")
+    ax.set_title("(c) who jams whom (row: receiver; colour: sender)", loc="left", fontsize=10)
+    handles = [Line2D([], [], ls="", marker="s", color=agent_colour(j), mec="k", mew=0.4,
+                      label=f"by agent {j + 1}") for j in range(N)]
+    handles.append(Line2D([], [], ls="", marker="o", mfc="none", mec="k", label="by the sum only"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+
+
+def _panel_powers(ax, steps, agents, scenario, t, T, N) -> None:
+    """(d) power received at the target (Eq. 10, summed over agents) and interference at each
+    agent, in dBW; 0 W is drawn on the floor of the axis."""
+    delta_db = scenario.antenna.interference_limit_db
+    target_db = to_db(steps["target_received_w"])
+    interf_db = to_db(agent_table(agents, "interference_w", T, N))
+    finite = np.concatenate([target_db[np.isfinite(target_db)], interf_db[np.isfinite(interf_db)], [delta_db]])
+    floor = 10 * np.floor((finite.min() - 5) / 10)
+    top = 10 * np.ceil((finite.max() + 3) / 10)
+
+    def floored(v):
+        return np.where(np.isneginf(v), floor, v)
+
+    ax.plot(t, floored(target_db), color=TARGET_POWER_COLOUR, lw=2, marker=".", label="at the target")
+    offsets = (np.arange(N) - (N - 1) / 2) * 0.12
+    for j in range(N):
+        ax.scatter(t + offsets[j], floored(interf_db[:, j]), facecolor="none",
+                   edgecolor=agent_colour(j), lw=1.4, s=36, label=f"interference at agent {j + 1}")
+    ax.axhline(delta_db, color="k", ls="--", lw=1, label=f"delta = {delta_db:g} dBW")
+    ax.set_ylim(floor - 2, top)
+    ticks = [v for v in ax.get_yticks() if floor < v <= top]
+    ax.set_yticks([floor, *ticks], ["0 W", *[f"{v:g}" for v in ticks]])
+    ax.set_ylabel("received power [dBW]")
+    ax.set_title("(d) received power: target (line) and agents' interference (circles)", loc="left", fontsize=10)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+
+
+def _panel_existence(ax, steps, agents, t, T, N) -> None:
+    """(e) fused existence probability (mean of the agents' e, Section V-A) and the truth."""
+    exists = np.asarray(steps["target_exists"], dtype=bool)
+    for k in t[exists]:
+        ax.axvspan(k - 0.5, k + 0.5, color="#2ca02c", alpha=0.12, lw=0, zorder=0)
+    own = agent_table(agents, "existence", T, N)
+    for j in range(N):
+        ax.plot(t, own[:, j], color=agent_colour(j), lw=0.8, alpha=0.6)
+    ax.plot(t, np.asarray(steps["existence"], dtype=float), color=TARGET_POWER_COLOUR, lw=2,
+            marker=".", label="fused existence")
+    ax.axhline(0.5, color="k", ls="--", lw=1, label="0.5: target reported")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_ylabel("P(target exists)")
+    ax.set_title("(e) existence probability (thin: each agent's own)", loc="left", fontsize=10)
+    handles, _ = ax.get_legend_handles_labels()
+    handles.append(Patch(color="#2ca02c", alpha=0.25, label="target exists (truth)"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+
+
+def _panel_ospa(ax, steps, scenario, t) -> None:
+    """(f) OSPA(p, c) between the truth set and the reported estimate set."""
+    p, c = scenario.metrics.ospa_order, scenario.metrics.ospa_cutoff
+    ax.plot(t, np.asarray(steps["ospa"], dtype=float), color="k", lw=1.6, marker=".", label="OSPA")
+    ax.axhline(c, color="0.4", ls=":", lw=1, label=f"cut-off c = {c:g} m")
+    ax.set_ylim(-0.03 * c, 1.1 * c)
+    ax.set_ylabel("OSPA [m]")
+    ax.set_title(f"(f) tracking error OSPA(p={p:g}, c={c:g} m)", loc="left", fontsize=10)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
