@@ -1,0 +1,168 @@
+"""The experiments: which configurations are compared on the same trials, and the scenario of
+each (configuration, trial).
+
+- ``table1``: the 8 configurations of Table I (Fig. 4): 11 mobility controls (Delta_R = [3] m,
+  N_phi = 4, N_theta = 8; the 3 m is ours, MODEL.md) or 79 controls (Delta_R = [1, 3, 5] m,
+  N_phi = N_theta = 8), times theta_a in {60, 80, 100, 120} deg.
+- ``constraints``: Fig. 5, the interference constraints of Eq. (13) enabled and disabled.
+- ``solvers`` (beyond the paper): the paper's GRASP against the exact optimum of Eqs. (12)-(13).
+
+The base scenario is the paper's settings (Section VI-A; the ``paper-fig3`` preset) without
+Fig. 3's occlusions, with the experiment's number of steps and the user's ``--set`` overrides.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from trackjam.config import (
+    Scenario,
+    apply_overrides,
+    load_scenario_data,
+    set_dotted,
+    validate_scenario,
+)
+from trackjam.errors import ConfigError
+from trackjam.experiments.trials import TrialDraw, draw_trial, simulation_seed, trial_fields
+from trackjam.world.moves import scenario_displacements
+
+BASE_PRESET = "paper-fig3"
+
+CONTROLS_11 = {"agents.radial_steps": [3.0], "agents.n_inclination": 4, "agents.n_azimuth": 8}
+CONTROLS_79 = {"agents.radial_steps": [1.0, 3.0, 5.0], "agents.n_inclination": 8, "agents.n_azimuth": 8}
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """One column of a comparison: ``index`` is 1-based (Table I's "Config. #")."""
+
+    index: int
+    label: str
+    settings: dict[str, Any] = field(default_factory=dict)  # dotted scenario keys
+
+
+@dataclass(frozen=True)
+class Experiment:
+    name: str
+    description: str
+    configurations: tuple[Configuration, ...]
+    figure: str  # file name of its figure in OUT
+
+    @property
+    def swept_keys(self) -> set[str]:
+        return {k for c in self.configurations for k in c.settings}
+
+
+def _table1() -> Experiment:
+    configurations = []
+    for controls, moves in ((11, CONTROLS_11), (79, CONTROLS_79)):
+        for theta_a in (60.0, 80.0, 100.0, 120.0):
+            i = len(configurations) + 1
+            configurations.append(
+                Configuration(i, f"{controls} controls, {theta_a:g} deg", {**moves, "antenna.opening_angle_deg": theta_a})
+            )
+    return Experiment(
+        "table1",
+        "Table I / Fig. 4: 11 or 79 mobility controls x opening angle 60, 80, 100, 120 deg",
+        tuple(configurations),
+        "fig4.png",
+    )
+
+
+EXPERIMENTS: dict[str, Experiment] = {
+    "table1": _table1(),
+    "constraints": Experiment(
+        "constraints",
+        "Fig. 5: interference constraints (Eq. 13) enabled and disabled",
+        (
+            Configuration(1, "constraints on", {"control.constraints": True}),
+            Configuration(2, "constraints off", {"control.constraints": False}),
+        ),
+        "fig5.png",
+    ),
+    "solvers": Experiment(
+        "solvers",
+        "beyond the paper: GRASP (the paper's solver) against the exact optimum",
+        (
+            Configuration(1, "grasp", {"control.solver": "grasp"}),
+            Configuration(2, "exact", {"control.solver": "exact"}),
+        ),
+        "solvers.png",
+    ),
+}
+
+# Keys a trial sets itself: a --set of these (or of a section holding them) is refused.
+_TRIAL_KEYS = (
+    "steps",
+    "seed",
+    "target.initial",
+    "target.appears",
+    "target.disappears",
+    "target.occlusions",
+    "target.stochastic",
+    "agents.initial",
+    "agents.initial_aim",
+)
+
+
+def get_experiment(name: str) -> Experiment:
+    try:
+        return EXPERIMENTS[name]
+    except KeyError:
+        raise ConfigError(f"unknown experiment {name!r}; choose one of: {', '.join(EXPERIMENTS)}") from None
+
+
+def _overlaps(a: str, b: str) -> bool:
+    return a == b or a.startswith(b + ".") or b.startswith(a + ".")
+
+
+def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
+    """Refuse ``--set`` keys that the trial draw or the experiment's sweep sets itself."""
+    for item in overrides:
+        key = item.partition("=")[0].strip()
+        for owned in _TRIAL_KEYS:
+            if _overlaps(key, owned):
+                hint = " (use --steps)" if owned == "steps" else " (use --seed)" if owned == "seed" else ""
+                raise ConfigError(f"--set {key}: set by every trial of an experiment, not settable{hint}")
+        for swept in sorted(experiment.swept_keys):
+            if _overlaps(key, swept):
+                raise ConfigError(f"--set {key}: swept by experiment {experiment.name} ({swept})")
+
+
+def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = None) -> dict:
+    """The paper's settings without occlusions, ``steps`` steps, and the user's overrides."""
+    overrides = list(overrides or [])
+    check_overrides(experiment, overrides)
+    data, _ = load_scenario_data(BASE_PRESET)
+    data["steps"] = steps
+    data.setdefault("target", {})["occlusions"] = []
+    return apply_overrides(data, overrides)
+
+
+def trial_scenario(
+    experiment: Experiment, base: dict, configuration: Configuration, draw: TrialDraw, seed: int
+) -> Scenario:
+    """The validated scenario of trial ``draw`` under ``configuration``."""
+    data = apply_overrides(base, [])
+    for key, value in {**configuration.settings, **trial_fields(draw)}.items():
+        set_dotted(data, key, value)
+    data["seed"] = simulation_seed(seed, configuration.index, draw.index)
+    data["name"] = f"{experiment.name}-c{configuration.index}-t{draw.index}"
+    return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}")
+
+
+def draw_for(base: dict, seed: int, k: int) -> TrialDraw:
+    """Trial k's draw in the base scenario's area (validated first, so a bad --set fails here)."""
+    s = validate_scenario(base, f"base scenario of the experiment (preset {BASE_PRESET} with --set)")
+    return draw_trial(seed, k, s.area.low, s.area.high, s.n_agents, s.filter.birth_speed)
+
+
+def configuration_columns(s: Scenario) -> dict[str, Any]:
+    """The parameters summary.csv reports for a configuration."""
+    return {
+        "n_controls": int(len(scenario_displacements(s))),
+        "opening_angle_deg": float(s.antenna.opening_angle_deg),
+        "constraints": bool(s.control.constraints),
+        "solver": s.control.solver,
+    }

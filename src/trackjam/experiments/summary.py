@@ -1,0 +1,143 @@
+"""Per-trial records on disk (one Parquet file each) and the per-configuration tables with
+t-based 95% confidence intervals: ``summary.csv`` (deterministic) and ``timing.csv`` (wall
+time, which varies from run to run and so is kept out of summary.csv).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from scipy import stats
+
+# (column stem in the tables, key of a trial record, meaning [unit], paper)
+METRICS: tuple[tuple[str, str, str], ...] = (
+    ("incidents", "jamming_incidents_per_agent", "jamming incidents per trial per agent [steps], Fig. 4(a)/5(a)"),
+    ("target_received_w", "target_received_w_mean", "received power at the target, sum over agents [W], Fig. 4(b)/5(c)"),
+    ("agent_received_w", "agent_received_w_mean", "interference received per agent [W], Fig. 4(b)/5(b)"),
+    ("transmit_w", "transmit_w_mean", "transmit power per agent and step [W], Fig. 4(c)"),
+    ("ospa", "ospa_mean", "OSPA tracking error (p=2, c=10 m) [m], Fig. 4(d)/5(d)"),
+)
+TIMING: tuple[tuple[str, str, str], ...] = (
+    ("step_s", "step_s_mean", "wall time per simulation step [s]"),
+    ("solve_s", "solve_s_mean", "wall time of the control solver per step [s]"),
+)
+CONFIG_COLUMNS = ("config", "label", "n_controls", "opening_angle_deg", "constraints", "solver")
+RECORD_KEYS = tuple(k for _, k, _ in METRICS + TIMING)
+
+
+# ---------------------------------------------------------------------------------------------
+# one trial <-> one Parquet file
+
+
+def trial_filename(config: int, trial: int) -> str:
+    return f"c{config:02d}-t{trial:04d}.parquet"
+
+
+def record_table(record: Mapping[str, Any]) -> pa.Table:
+    """One trial as a one-row table: scalars as columns, per-agent incidents as a list, and
+    each 1-D numeric per-step series ``name`` of the run as a list column ``step.name``."""
+    columns: dict[str, pa.Array] = {
+        "experiment": pa.array([str(record["experiment"])]),
+        "config": pa.array([int(record["config"])], pa.int64()),
+        "trial": pa.array([int(record["trial"])], pa.int64()),
+        "seed": pa.array([int(record["seed"])], pa.int64()),
+    }
+    for key in RECORD_KEYS:
+        columns[key] = pa.array([float(record[key])], pa.float64())
+    columns["jamming_incidents"] = pa.array([[int(v) for v in record.get("jamming_incidents", [])]], pa.list_(pa.int64()))
+    for name, values in sorted((record.get("steps") or {}).items()):
+        a = np.asarray(values)
+        if a.ndim == 1 and a.dtype.kind in "biuf":
+            columns[f"step.{name}"] = pa.array([a.astype(float).tolist()], pa.list_(pa.float64()))
+    return pa.table(columns)
+
+
+def write_trial(folder: Path, record: Mapping[str, Any]) -> Path:
+    """Write a trial atomically: to a temporary name in the same folder, then ``os.replace``."""
+    final = folder / trial_filename(int(record["config"]), int(record["trial"]))
+    tmp = folder / f".{final.name}.{os.getpid()}.tmp"
+    pq.write_table(record_table(record), tmp)
+    os.replace(tmp, final)
+    return final
+
+
+def read_trial(path: Path) -> dict:
+    return pq.read_table(path).to_pylist()[0]
+
+
+def finished_trials(folder: Path) -> set[tuple[int, int]]:
+    """(config, trial) of every complete trial file; stale temporary files are removed."""
+    done = set()
+    for p in folder.iterdir():
+        if p.name.startswith(".") and p.name.endswith(".tmp"):
+            p.unlink(missing_ok=True)
+        elif p.suffix == ".parquet" and p.name.startswith("c"):
+            c, _, t = p.stem.partition("-t")
+            done.add((int(c[1:]), int(t)))
+    return done
+
+
+# ---------------------------------------------------------------------------------------------
+# tables
+
+
+def mean_ci95(values: Iterable[float]) -> tuple[float, float]:
+    """Sample mean and the half-width of its t-based 95% confidence interval,
+    t_{0.975, n-1} s / sqrt(n) (NaN for fewer than 2 values)."""
+    x = np.asarray(list(values), dtype=float)
+    n = len(x)
+    if n == 0:
+        return math.nan, math.nan
+    m = float(x.mean())
+    if n < 2:
+        return m, math.nan
+    s = float(x.std(ddof=1))
+    return m, float(stats.t.ppf(0.975, n - 1) * s / math.sqrt(n))
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return "" if math.isnan(v) else format(v, ".6g")
+    return str(v)
+
+
+def table_rows(
+    records: list[Mapping[str, Any]],
+    configurations: list[Mapping[str, Any]],
+    metrics: tuple[tuple[str, str, str], ...],
+) -> list[dict[str, Any]]:
+    """One row per configuration (in order): its parameters, trials, and mean/ci95 of each
+    metric over its trials (records are taken in trial order, whatever order they finished)."""
+    rows = []
+    for conf in configurations:
+        mine = sorted((r for r in records if int(r["config"]) == conf["config"]), key=lambda r: int(r["trial"]))
+        row = {k: conf[k] for k in CONFIG_COLUMNS}
+        row["trials"] = len(mine)
+        for stem, key, _ in metrics:
+            row[f"{stem}_mean"], row[f"{stem}_ci95"] = mean_ci95(r[key] for r in mine)
+        rows.append(row)
+    return rows
+
+
+def write_table(path: Path, rows: list[dict[str, Any]]) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(list(rows[0]))
+        for row in rows:
+            w.writerow([_fmt(v) for v in row.values()])
+    os.replace(tmp, path)
+
+
+def read_table(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))

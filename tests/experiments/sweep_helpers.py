@@ -1,0 +1,50 @@
+"""A cheap stand-in for the simulation, and a ``python -m sweep_helpers`` entry that runs a
+sweep with it (the interrupted-sweep test kills that process).
+
+``fake_trial`` is a deterministic function of the scenario (its seed, opening angle, number of
+controls and the drawn positions), so an engine that loses, duplicates, reorders or mixes up
+trials changes summary.csv. ``TRACKJAM_FAKE_SLEEP`` (seconds) makes each trial slow enough to
+be interrupted; it does not change any result.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+import numpy as np
+
+from trackjam.config import Scenario
+
+
+def fake_trial(scenario: Scenario) -> dict:
+    time.sleep(float(os.environ.get("TRACKJAM_FAKE_SLEEP", "0")))
+    rng = np.random.default_rng(scenario.seed)
+    u = np.asarray(scenario.agents.initial)
+    x = np.asarray(scenario.target.initial[:3])
+    d = np.linalg.norm(u - x, axis=1)
+    theta = scenario.antenna.opening_angle_deg
+    incidents = rng.integers(0, scenario.steps + 1, size=len(u)) * theta / 120.0
+    ospa = np.abs(rng.normal(2.0, 1.0, size=scenario.steps))
+    return {
+        "jamming_incidents_per_agent": float(np.mean(np.floor(incidents))),
+        "jamming_incidents": [int(v) for v in np.floor(incidents)],
+        "target_received_w_mean": float(np.sum(1.0 / (1.0 + d**2))),
+        "agent_received_w_mean": float(1e-4 * rng.uniform() * len(scenario.agents.radial_steps)),
+        "transmit_w_mean": float(rng.choice([0.0, 1e-5, 0.1995, 1.122])),
+        "ospa_mean": float(ospa.mean()),
+        "step_s_mean": time.perf_counter() % 1.0,  # wall time: varies on purpose
+        "solve_s_mean": 0.001,
+        "steps": {"t": np.arange(1, scenario.steps + 1), "ospa": ospa},
+    }
+
+
+if __name__ == "__main__":
+    from sweep_helpers import fake_trial as trial  # by module name, so workers can import it
+
+    from trackjam.experiments.engine import run_experiment
+
+    name, out, workers = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    run_experiment(name, trials=int(sys.argv[4]), steps=3, seed=7, workers=workers, out=out,
+                   progress="lines", trial=trial)

@@ -1,0 +1,83 @@
+"""The experiments of Section VI: Table I's 8 configurations, constraints on/off, and the
+solver comparison, all on the paper's settings without Fig. 3's occlusions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from trackjam.errors import ConfigError
+from trackjam.experiments.definitions import (
+    EXPERIMENTS,
+    base_data,
+    configuration_columns,
+    draw_for,
+    get_experiment,
+    trial_scenario,
+)
+
+
+def _scenarios(name, k=0, seed=0, overrides=()):
+    e = get_experiment(name)
+    base = base_data(e, steps=30, overrides=list(overrides))
+    d = draw_for(base, seed, k)
+    return [trial_scenario(e, base, c, d, seed) for c in e.configurations]
+
+
+def test_table1_is_11_or_79_controls_times_four_opening_angles():
+    cols = [configuration_columns(s) for s in _scenarios("table1")]
+    assert [c["n_controls"] for c in cols] == [11] * 4 + [79] * 4
+    assert [c["opening_angle_deg"] for c in cols] == [60, 80, 100, 120] * 2
+    assert all(c["constraints"] and c["solver"] == "grasp" for c in cols)
+
+
+def test_constraints_and_solvers_compare_one_setting_each():
+    assert [configuration_columns(s)["constraints"] for s in _scenarios("constraints")] == [True, False]
+    assert [configuration_columns(s)["solver"] for s in _scenarios("solvers")] == ["grasp", "exact"]
+
+
+@pytest.mark.parametrize("name", list(EXPERIMENTS))
+def test_every_configuration_sees_the_same_trial(name):
+    ss = _scenarios(name, k=4, seed=9)
+    for s in ss[1:]:
+        assert s.target.initial == ss[0].target.initial
+        assert s.agents.initial == ss[0].agents.initial
+        assert s.agents.initial_aim == tuple(ss[0].target.initial[:3])
+    assert len({s.seed for s in ss}) == len(ss)  # but its own simulation stream
+
+
+def test_the_base_is_the_papers_settings_without_occlusions():
+    s = _scenarios("constraints")[0]
+    assert s.target.occlusions == [] and s.target.appears == 1 and s.target.disappears is None
+    assert s.steps == 30 and s.n_agents == 3
+    assert s.antenna.opening_angle_deg == 80 and s.control.samples == 10000
+    np.testing.assert_allclose(s.antenna.levels_w[-1], 10**0.05)
+
+
+def test_user_overrides_reach_every_configuration():
+    ss = _scenarios("table1", overrides=["control.solver=exact", "filter.particles=200"])
+    assert all(s.control.solver == "exact" and s.filter.particles == 200 for s in ss)
+
+
+@pytest.mark.parametrize(
+    "override, words",
+    [
+        ("antenna.opening_angle_deg=90", "swept"),
+        ("antenna={height: 30}", "swept"),
+        ("agents=null", "every trial"),
+        ("steps=5", "--steps"),
+        ("seed=5", "--seed"),
+        ("target.initial=[1,2,3,0,0,0]", "every trial"),
+        ("filter.particles=-3", "filter.particles"),
+        ("control.nope=1", "unknown key"),
+    ],
+)
+def test_bad_overrides_are_one_line_config_errors(override, words):
+    with pytest.raises(ConfigError, match=words.replace(".", r"\.").replace("-", r"\-")) as err:
+        _scenarios("table1", overrides=[override])
+    assert "\n" not in str(err.value)
+
+
+def test_unknown_experiment_names_the_choices():
+    with pytest.raises(ConfigError, match="table1, constraints, solvers"):
+        get_experiment("table2")

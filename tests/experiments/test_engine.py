@@ -1,0 +1,196 @@
+"""The sweep engine: results depend on the trials only, never on workers, backend or
+interruptions; a finished trial is never lost; bad input fails at once with one line.
+
+The trials here are ``sweep_helpers.fake_trial``, a cheap deterministic stand-in for the
+simulation, so the engine is tested on its own (test_real_trials.py runs the real loop).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from sweep_helpers import fake_trial
+
+from trackjam.errors import ConfigError
+from trackjam.experiments.engine import run_experiment, summarise_folder
+from trackjam.experiments.summary import read_table
+
+HERE = Path(__file__).resolve().parent
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]), "NUMBA_NUM_THREADS": "1"}
+SWEEP = dict(trials=2, steps=3, seed=7, progress="none", trial=fake_trial)  # 2 configurations x 2 trials
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _start(args: list[str], env=ENV) -> subprocess.Popen:
+    # its own session: killing its process group kills it and its children, nothing else
+    return subprocess.Popen(
+        [sys.executable, *args], env=env, start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+
+
+def _kill(p: subprocess.Popen) -> None:
+    try:
+        os.killpg(p.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    p.wait()
+
+
+def _wait_for_files(folder: Path, n: int, proc: subprocess.Popen | None = None, limit_s: float = 60) -> None:
+    t0 = time.monotonic()
+    while len(list(folder.glob("c*.parquet"))) < n:
+        assert proc is None or proc.poll() is None, "the sweep ended before it could be interrupted"
+        assert time.monotonic() - t0 < limit_s, "no trial finished"
+        time.sleep(0.05)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> bytes:
+    out = tmp_path_factory.mktemp("serial")
+    r = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert r.ran == 4 and len(list((out / "trials").glob("*.parquet"))) == 4
+    return (out / "summary.csv").read_bytes()
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A real Dask cluster on 127.0.0.1: a scheduler and two single-thread workers."""
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    procs = [_start(["-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+                     address.rsplit(":", 1)[1], "--no-dashboard"])]
+    for _ in range(2):
+        procs.append(_start(["-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                             "--no-dashboard", "--no-nanny"]))
+    from distributed import Client
+
+    client = Client(address, timeout=30)
+    client.wait_for_workers(2, timeout=60)
+    client.close()
+    yield address, procs
+    for p in procs:
+        _kill(p)
+
+
+def test_the_summary_is_the_same_with_one_and_two_local_workers(reference, tmp_path):
+    r = run_experiment("constraints", workers=2, out=tmp_path, **SWEEP)
+    assert (tmp_path / "summary.csv").read_bytes() == reference
+    rows = read_table(tmp_path / "summary.csv")
+    assert [row["constraints"] for row in rows] == ["true", "false"]
+    assert [row["trials"] for row in rows] == ["2", "2"]
+    assert "step_s_mean" not in rows[0] and "step_s_mean" in read_table(tmp_path / "timing.csv")[0]
+    assert (tmp_path / "fig5.png").stat().st_size > 0
+    assert r.summary[0]["incidents_mean"] == pytest.approx(float(rows[0]["incidents_mean"]), rel=1e-5)
+
+
+def test_the_summary_is_the_same_on_a_dask_cluster_and_survives_a_worker_killed_mid_sweep(
+    reference, cluster, tmp_path, monkeypatch
+):
+    address, procs = cluster
+    run_experiment("constraints", scheduler=address, out=tmp_path / "dask", **SWEEP)
+    assert (tmp_path / "dask" / "summary.csv").read_bytes() == reference
+
+    # slow trials; once the first is written, one worker dies with whatever it was running
+    monkeypatch.setenv("TRACKJAM_FAKE_SLEEP", "0.5")
+    out = tmp_path / "killed"
+    killer = threading.Thread(target=lambda: (_wait_for_files(out / "trials", 1), _kill(procs[1])))
+    killer.start()
+    r = run_experiment("constraints", scheduler=address, out=out, **{**SWEEP, "trials": 4})
+    killer.join()
+    assert procs[1].poll() is not None  # the worker is dead
+    assert r.ran == 8 and len(list((out / "trials").glob("*.parquet"))) == 8
+    uninterrupted = run_experiment("constraints", workers=1, out=tmp_path / "ref4", **{**SWEEP, "trials": 4})
+    assert (out / "summary.csv").read_bytes() == (tmp_path / "ref4" / "summary.csv").read_bytes()
+    assert r.summary == uninterrupted.summary
+
+
+def test_a_sweep_killed_mid_run_resumes_to_the_same_summary(reference, tmp_path):
+    out = tmp_path / "sweep"
+    env = {**ENV, "TRACKJAM_FAKE_SLEEP": "0.4"}
+    proc = _start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env=env)
+    try:
+        _wait_for_files(out / "trials", 2, proc)
+    finally:
+        _kill(proc)  # SIGKILL to the sweep and its pool workers
+    kept = len(list((out / "trials").glob("c*.parquet")))
+    assert 2 <= kept < 8
+    r = run_experiment("constraints", workers=2, out=out, **{**SWEEP, "trials": 4})
+    assert r.ran == 8 - kept
+    fresh = run_experiment("constraints", workers=1, out=tmp_path / "fresh", **{**SWEEP, "trials": 4})
+    assert (out / "summary.csv").read_bytes() == (tmp_path / "fresh" / "summary.csv").read_bytes()
+    assert r.summary == fresh.summary
+    assert not list((out / "trials").glob(".*"))  # no temporary file is left behind
+
+
+def test_a_rerun_skips_finished_trials_and_rebuilding_gives_the_same_summary(reference, tmp_path):
+    run_experiment("constraints", workers=1, out=tmp_path, **SWEEP)
+    again = run_experiment("constraints", workers=1, out=tmp_path, **SWEEP)
+    assert again.ran == 0
+    assert (tmp_path / "summary.csv").read_bytes() == reference
+    (tmp_path / "summary.csv").unlink()
+    summarise_folder(tmp_path)
+    assert (tmp_path / "summary.csv").read_bytes() == reference
+    params = json.loads((tmp_path / "experiment.json").read_text())
+    assert params["experiment"] == "constraints" and params["trials"] == 2 and params["seed"] == 7
+
+
+def test_resuming_into_a_folder_of_another_experiment_is_refused(tmp_path):
+    run_experiment("constraints", workers=1, out=tmp_path, **SWEEP)
+    with pytest.raises(ConfigError, match="different experiment.*seed: 7 there, 8 now"):
+        run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "seed": 8})
+    with pytest.raises(ConfigError, match="different experiment"):
+        run_experiment("solvers", workers=1, out=tmp_path, **SWEEP)
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="not empty"):
+        run_experiment("constraints", workers=1, out=tmp_path / "other", **SWEEP)
+
+
+def test_plain_progress_prints_one_line_per_trial_with_running_means(tmp_path, capsys):
+    run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "progress": "lines"})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4
+    assert lines[0].startswith("[1/4] config 1 (constraints on) trial 0: incidents")
+    assert "running means:" in lines[-1]
+
+
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"name": "table9"}, "unknown experiment 'table9'"),
+        ({"trials": 0}, "--trials must be a positive integer"),
+        ({"steps": 0}, "--steps must be a positive integer"),
+        ({"workers": 0}, "--workers must be a positive integer"),
+        ({"progress": "loud"}, "progress must be one of"),
+        ({"overrides": ["antenna.opening_angle_deg=200"]}, "opening angle must be in"),
+    ],
+)
+def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, kwargs, words):
+    args = {"name": "constraints", "workers": 1, "out": tmp_path / "out", **SWEEP, **kwargs}
+    with pytest.raises(ConfigError, match=words) as err:
+        run_experiment(**args)
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unreachable_scheduler_fails_with_a_clear_error_in_seconds(tmp_path):
+    address = f"tcp://127.0.0.1:{_free_port()}"  # nothing listens there
+    t0 = time.monotonic()
+    with pytest.raises(ConfigError, match=f"cannot reach the Dask scheduler at {address}") as err:
+        run_experiment("constraints", scheduler=address, out=tmp_path, **SWEEP)
+    assert time.monotonic() - t0 < 20  # a guard against a hang, not a benchmark
+    assert "\n" not in str(err.value)
