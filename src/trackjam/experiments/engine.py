@@ -195,7 +195,7 @@ def run_experiment(
 ) -> ExperimentResult:
     """Run (or resume) experiment ``name``: every configuration on the same ``trials`` trial
     draws of ``steps`` steps, then write summary.csv, timing.csv and the figure into ``out``
-    (default ``runs/NAME``).
+    (default ``runs/experiment-NAME``).
 
     ``progress``: "auto" (a rich bar on a terminal, else one line per trial), "bar", "lines",
     "none", or a callable ``(record, done, total)``. ``trial`` maps a scenario to a record
@@ -213,7 +213,7 @@ def run_experiment(
     if workers is not None and scheduler:
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
     overrides = list(overrides or [])
-    out = Path(out) if out is not None else Path("runs") / name
+    out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
 
     # every scenario is built (and so validated) before anything runs or is written
     base = base_data(experiment, steps, overrides)

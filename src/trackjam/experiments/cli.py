@@ -1,0 +1,52 @@
+"""What ``trackjam experiment NAME`` does once typer has parsed its options."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from trackjam.experiments.engine import run_experiment
+from trackjam.experiments.summary import METRICS
+
+OPTIONS = {
+    "NAME": "table1 (Table I / Fig. 4), constraints (Fig. 5) or solvers (GRASP vs exact; ours)",
+    "--trials": "trials per configuration, the same draws for every configuration (paper: 20)",
+    "--steps": "steps of dT = 1 s per trial (paper: 30)",
+    "--seed": "experiment seed; trial k's draw and each (configuration, trial) seed derive from it",
+    "--workers": "local worker processes (default: CPU count; 1 runs in this process)",
+    "--scheduler": "address tcp://HOST:PORT of a running Dask scheduler; trials run on its workers",
+    "--out": "output folder (default runs/experiment-NAME); rerun with the same options to resume",
+    "--set": "key=value scenario override applied to every configuration (repeatable)",
+}
+
+
+def experiment_command(
+    name: str,
+    trials: int = 20,
+    steps: int = 30,
+    seed: int = 0,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    out: Path | None = None,
+    overrides: list[str] | None = None,
+) -> None:
+    """Run or resume the experiment with a progress display, then print its summary table."""
+    from rich.console import Console
+    from rich.table import Table
+
+    result = run_experiment(
+        name, trials=trials, steps=steps, seed=seed, workers=workers, scheduler=scheduler,
+        out=out if out is not None else Path("runs") / f"experiment-{name}", overrides=overrides,
+    )
+    table = Table(title=f"{name}: mean ± 95% CI over trials ({result.out / 'summary.csv'})")
+    table.add_column("#", justify="right")
+    table.add_column("configuration")
+    table.add_column("trials", justify="right")
+    for stem, _, _ in METRICS:
+        table.add_column(stem, justify="right")
+    table.add_column("step [s]", justify="right")
+    for row, timing in zip(result.summary, result.timing):
+        cells = [f"{row[f'{s}_mean']:.3g} ± {row[f'{s}_ci95']:.2g}" for s, _, _ in METRICS]
+        table.add_row(str(row["config"]), row["label"], str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
+    Console(width=160).print(table)
+    ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
+    print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")
