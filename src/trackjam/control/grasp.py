@@ -1,0 +1,247 @@
+"""The paper's distributed GRASP (Section V-D), as MODEL.md reads it.
+
+Each agent j, with its own random stream, runs n_I iterations of
+
+1. *greedy randomised solution*: n_s joint controls, each agent's (candidate, level) pair drawn
+   uniformly with replacement from its admissible pairs; the best feasible one (Eqs. 12-13) is
+   kept (the first in sample order among equal values);
+2. *local search*: agent j alone tries {u-, u, u+} x {l-, l, l+} around its own control, the
+   others' fixed, where u-, u+ are two distinct controls drawn at random among the
+   ``neighbours`` admissible displacements nearest to u (Euclidean distance between
+   displacement vectors, ties to the lower index) and l-, l+ the adjacent levels, clipped at the
+   ends of L; a neighbour replaces the incumbent only when strictly better;
+
+and keeps the best feasible control over its iterations. The agents then exchange their best
+solutions and all apply the best one (ties to the lower agent index).
+
+All agents hovering at the lowest level (``off`` in the paper, 0 W, hence no interference) is
+the starting incumbent of every search, so a feasible solution is always returned when level 0
+is off. An iteration whose n_s samples are all infeasible searches around that incumbent.
+
+Random draws (ours, to make the compiled and numpy versions draw the same stream): a uniform
+pair out of M is ``floor(U * M)`` with U = ``rng.random()`` (a bias below M / 2^53); the samples
+of an iteration take U row by row (sample-major, agent-minor), then the local search takes two
+more: a = floor(U1 m), b = floor(U2 (m - 1)), b += 1 if b >= a, for the m neighbours of u.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numba import njit
+
+from trackjam.control.objective import (
+    at_least_probability,
+    kernel_at_least,
+    kernel_feasible,
+    received_interference,
+    to_solution,
+)
+from trackjam.control.problem import Problem, Solution
+
+
+def neighbour_lists(problem: Problem, neighbours: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every agent's candidate, the slots of its ``neighbours`` nearest other candidates.
+
+    Returns ``neigh`` (N, C, k) and ``n_neigh`` (N, C), ``n_neigh = min(neighbours, n_cand-1)``.
+    Distance is between displacement vectors; ties go to the lower displacement index.
+    """
+    N, C = problem.move.shape
+    k = max(int(neighbours), 1)
+    neigh = np.zeros((N, C, k), dtype=np.int64)
+    n_neigh = np.zeros((N, C), dtype=np.int64)
+    for i in range(N):
+        n = int(problem.n_cand[i])
+        d = problem.displacements[problem.move[i, :n]]
+        dist = np.linalg.norm(d[:, None, :] - d[None, :, :], axis=-1)
+        dist[np.arange(n), np.arange(n)] = np.inf
+        order = np.argsort(dist, axis=1, kind="stable")[:, : min(k, n - 1)]
+        neigh[i, :n, : order.shape[1]] = order
+        n_neigh[i, :n] = order.shape[1]
+    return neigh, n_neigh
+
+
+@njit(cache=True)
+def _value(p_d, gain, levels_w, delta, n, constrained, cand, level, p, q):
+    """Xi of (cand, level), or -inf when Eq. (13) is enforced and violated."""
+    for i in range(cand.shape[0]):
+        p[i] = p_d[i, cand[i], level[i]]
+    xi = kernel_at_least(p, n, q)
+    if constrained and not kernel_feasible(gain, levels_w, delta, cand, level):
+        return -np.inf
+    return xi
+
+
+@njit(cache=True, nogil=True)
+def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_cand, neigh,
+                        n_neigh, samples, iterations, best_cand, best_level):
+    """Agent ``me``'s GRASP search; writes its best control into ``best_cand``/``best_level``
+    (both (N,), on entry the starting incumbent) and returns its value (-inf: none feasible)."""
+    N = n_cand.shape[0]
+    L = levels_w.shape[0]
+    p = np.empty(N)
+    q = np.empty(n + 1)
+    c = np.empty(N, dtype=np.int64)
+    lv = np.empty(N, dtype=np.int64)
+    it_c = np.empty(N, dtype=np.int64)
+    it_l = np.empty(N, dtype=np.int64)
+    kk = np.empty(N, dtype=np.int64)
+    M = n_cand * L
+    p_flat = p_d.reshape(N, -1)  # pair k = c * L + l
+    pair_c = np.arange(p_flat.shape[1]) // L
+    pair_l = np.arange(p_flat.shape[1]) % L
+    start_c = best_cand.copy()
+    start_l = best_level.copy()
+    best = _value(p_d, gain, levels_w, delta, n, constrained, best_cand, best_level, p, q)
+    start = best
+    for _ in range(iterations):
+        # 1. greedy randomised solution: best feasible of n_s uniform joint samples
+        it_best = -np.inf
+        for _s in range(samples):
+            for i in range(N):
+                k = min(int(rng.random() * M[i]), M[i] - 1)
+                kk[i] = k
+                p[i] = p_flat[i, k]
+            xi = kernel_at_least(p, n, q)
+            if xi > it_best:
+                for i in range(N):
+                    c[i] = pair_c[kk[i]]
+                    lv[i] = pair_l[kk[i]]
+                ok = True
+                if constrained:
+                    # Eq. (13) inline: the hottest test of the search
+                    for i in range(N):
+                        r = 0.0
+                        for j in range(N):
+                            if j != i:
+                                r += levels_w[lv[j]] * gain[i, j, c[i], c[j]]
+                        if r >= delta:
+                            ok = False
+                            break
+                if ok:
+                    it_best = xi
+                    for i in range(N):
+                        it_c[i] = c[i]
+                        it_l[i] = lv[i]
+        if it_best == -np.inf:
+            it_best = start
+            it_c[:] = start_c
+            it_l[:] = start_l
+        # 2. local search over my own {u-, u, u+} x {l-, l, l+}
+        u = it_c[me]
+        m = n_neigh[me, u]
+        if m >= 2:
+            a = min(int(rng.random() * m), m - 1)
+            b = min(int(rng.random() * (m - 1)), m - 2)
+            if b >= a:
+                b += 1
+            u_minus, u_plus = neigh[me, u, a], neigh[me, u, b]
+        elif m == 1:
+            u_minus, u_plus = neigh[me, u, 0], neigh[me, u, 0]
+        else:
+            u_minus, u_plus = u, u
+        l0 = it_l[me]
+        l_minus, l_plus = max(l0 - 1, 0), min(l0 + 1, L - 1)
+        c[:] = it_c
+        lv[:] = it_l
+        ls_best = it_best
+        ls_u, ls_l = u, l0
+        for uu in (u_minus, u, u_plus):
+            for ll in (l_minus, l0, l_plus):
+                c[me] = uu
+                lv[me] = ll
+                v = _value(p_d, gain, levels_w, delta, n, constrained, c, lv, p, q)
+                if v > ls_best:
+                    ls_best = v
+                    ls_u, ls_l = uu, ll
+        if ls_best > best:
+            best = ls_best
+            best_cand[:] = it_c
+            best_level[:] = it_l
+            best_cand[me] = ls_u
+            best_level[me] = ls_l
+    return best
+
+
+def grasp_search_reference(rng, me, problem: Problem, neigh, n_neigh, samples, iterations,
+                           start_cand, start_level):
+    """Plain-numpy twin of :func:`kernel_grasp_search` (same draws, same ties)."""
+    N, L, n = problem.n_agents, problem.n_levels, problem.at_least
+    idx = np.arange(N)
+
+    def values(c, lv):
+        xi = at_least_probability(problem.p_d[idx, c, lv], n)
+        if problem.constraints:
+            ok = np.all(received_interference(problem.gain, problem.levels_w, c, lv) < problem.delta_w, axis=-1)
+            xi = np.where(ok, xi, -np.inf)
+        return xi
+
+    start_c, start_l = np.array(start_cand), np.array(start_level)
+    best_c, best_l = start_c.copy(), start_l.copy()
+    start = best = float(values(start_c, start_l))
+    M = problem.n_cand * L
+    for _ in range(iterations):
+        U = rng.random((samples, N))
+        k = np.minimum((U * M).astype(np.int64), M - 1)
+        c, lv = k // L, k % L
+        v = values(c, lv)
+        s = int(np.argmax(v))
+        if v[s] == -np.inf:
+            it_best, it_c, it_l = start, start_c.copy(), start_l.copy()
+        else:
+            it_best, it_c, it_l = float(v[s]), c[s].copy(), lv[s].copy()
+        u = it_c[me]
+        m = n_neigh[me, u]
+        if m >= 2:
+            a = min(int(rng.random() * m), m - 1)
+            b = min(int(rng.random() * (m - 1)), m - 2)
+            b += b >= a
+            us = [neigh[me, u, a], u, neigh[me, u, b]]
+        else:
+            us = [neigh[me, u, 0] if m == 1 else u, u, neigh[me, u, 0] if m == 1 else u]
+        l0 = it_l[me]
+        ls = [max(l0 - 1, 0), l0, min(l0 + 1, L - 1)]
+        trial_c = np.tile(it_c, (9, 1))
+        trial_l = np.tile(it_l, (9, 1))
+        trial_c[:, me] = np.repeat(us, 3)
+        trial_l[:, me] = np.tile(ls, 3)
+        tv = values(trial_c, trial_l)
+        t = int(np.argmax(tv))
+        if tv[t] > it_best:
+            it_best, it_c, it_l = float(tv[t]), trial_c[t], trial_l[t]
+        if it_best > best:
+            best, best_c, best_l = it_best, it_c.copy(), it_l.copy()
+    return best, best_c, best_l
+
+
+def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int = 10000,
+                iterations: int = 100, neighbours: int = 6, threads: int = 1) -> Solution:
+    """Every agent runs its GRASP search with ``rngs[j]``; all apply the best (ties: lower j).
+
+    ``threads > 1`` runs the agents' searches concurrently (they are independent, as on the
+    real team, so the result does not depend on it).
+    """
+    N = problem.n_agents
+    if len(rngs) < N:
+        raise ValueError(f"grasp needs one random generator per agent ({N}), got {len(rngs)}")
+    neigh, n_neigh = neighbour_lists(problem, neighbours)
+    values = np.empty(N)
+    cands = np.zeros((N, N), dtype=np.int64)
+    levels = np.zeros((N, N), dtype=np.int64)
+
+    def search(j: int) -> None:
+        values[j] = kernel_grasp_search(
+            rngs[j], j, problem.p_d, problem.gain, problem.levels_w, problem.delta_w,
+            problem.at_least, problem.constraints, problem.n_cand, neigh, n_neigh,
+            int(samples), int(iterations), cands[j], levels[j],
+        )
+
+    if threads > 1 and N > 1:
+        with ThreadPoolExecutor(max_workers=min(threads, N)) as pool:
+            list(pool.map(search, range(N)))
+    else:
+        for j in range(N):
+            search(j)
+    best = int(np.argmax(values))
+    return to_solution(problem, cands[best], levels[best])

@@ -1,0 +1,113 @@
+"""The joint objective Xi^N_n of Eq. (12) and the interference constraint of Eq. (13).
+
+Xi^N_n = sum_{m=n}^{N} xi^N_m is the probability that at least n of the N agents detect,
+the agents detecting independently with probabilities p^1_D..p^N_D: the upper tail of a
+Poisson-binomial law. It is computed by dynamic programming over the agents in O(N n), with
+state m = 0..n-1 ("exactly m detections so far") and an absorbing state n ("at least n"), so no
+subtraction and no sum over subsets. Xi is non-decreasing in every p^j_D, which the exact solver
+relies on.
+
+Eq. (13): agent i receives sum_{j != i} l_j g_{j->i}, and must receive strictly less than delta.
+
+``kernel_at_least`` and ``kernel_feasible`` are the compiled twins used inside the solvers;
+``at_least_probability`` and ``received_interference`` are the numpy references.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from trackjam.control.problem import Problem, Solution
+
+
+def at_least_probability(p, n: int) -> np.ndarray:
+    """Xi^N_n = P(at least n of N detect) for ``p`` of shape (..., N); vectorised numpy."""
+    p = np.asarray(p, dtype=np.float64)
+    N = p.shape[-1]
+    if n <= 0:
+        return np.ones(p.shape[:-1])
+    if n > N:
+        return np.zeros(p.shape[:-1])
+    q = np.zeros(p.shape[:-1] + (n + 1,))
+    q[..., 0] = 1.0
+    for j in range(N):
+        pj = p[..., j : j + 1]
+        absorbed = q[..., n] + q[..., n - 1] * pj[..., 0]
+        q[..., 1:n] = q[..., 1:n] * (1.0 - pj) + q[..., 0 : n - 1] * pj
+        q[..., 0] = q[..., 0] * (1.0 - pj[..., 0])
+        q[..., n] = absorbed
+    return q[..., n]
+
+
+@njit(cache=True)
+def kernel_at_least(p, n, q):
+    """Compiled twin of :func:`at_least_probability` for one vector ``p`` (N,); ``q`` is a
+    work buffer of length >= n + 1."""
+    N = p.shape[0]
+    if n <= 0:
+        return 1.0
+    if n > N:
+        return 0.0
+    q[0] = 1.0
+    for m in range(1, n + 1):
+        q[m] = 0.0
+    for j in range(N):
+        pj = p[j]
+        q[n] += q[n - 1] * pj
+        for m in range(n - 1, 0, -1):
+            q[m] = q[m] * (1.0 - pj) + q[m - 1] * pj
+        q[0] *= 1.0 - pj
+    return q[n]
+
+
+def received_interference(gain, levels_w, cand, level) -> np.ndarray:
+    """Left side of Eq. (13): power each agent i receives from the others [W], shape (..., N).
+
+    ``gain`` is :attr:`Problem.gain`; ``cand`` and ``level`` have shape (..., N).
+    """
+    cand = np.asarray(cand)
+    level = np.asarray(level)
+    N = gain.shape[0]
+    i = np.arange(N)
+    # g[..., i, j] = gain[i, j, cand_i, cand_j]
+    g = gain[i[:, None], i[None, :], cand[..., :, None], cand[..., None, :]]
+    return np.sum(g * np.asarray(levels_w)[level][..., None, :], axis=-1)
+
+
+@njit(cache=True)
+def kernel_feasible(gain, levels_w, delta, cand, level):
+    """Compiled Eq. (13): True when every agent receives strictly less than ``delta``."""
+    N = cand.shape[0]
+    for i in range(N):
+        r = 0.0
+        for j in range(N):
+            if j != i:
+                r += levels_w[level[j]] * gain[i, j, cand[i], cand[j]]
+        if r >= delta:
+            return False
+    return True
+
+
+def evaluate(problem: Problem, cand, level) -> tuple[np.ndarray, np.ndarray]:
+    """Xi^N_n and Eq. (13) of joint choices (``cand``, ``level`` of shape (..., N)).
+
+    The second array says whether Eq. (13) holds, whether or not ``problem.constraints`` asks
+    the solvers to enforce it (so a solution can report honestly that it jams an agent).
+    """
+    cand = np.asarray(cand, dtype=np.int64)
+    level = np.asarray(level, dtype=np.int64)
+    N = problem.n_agents
+    p = problem.p_d[np.arange(N), cand, level]
+    xi = at_least_probability(p, problem.at_least)
+    ok = np.all(received_interference(problem.gain, problem.levels_w, cand, level) < problem.delta_w, axis=-1)
+    return xi, ok
+
+
+def to_solution(problem: Problem, cand, level) -> Solution:
+    """The :class:`Solution` of candidate slots ``cand`` and levels ``level``, re-evaluated."""
+    cand = np.asarray(cand, dtype=np.int64)
+    level = np.asarray(level, dtype=np.int64)
+    xi, ok = evaluate(problem, cand, level)
+    move = problem.move[np.arange(problem.n_agents), cand]
+    return Solution(move=move, level=level.copy(), objective=float(xi), feasible=bool(ok))

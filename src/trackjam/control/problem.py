@@ -1,0 +1,138 @@
+"""One step's cooperative decision problem, Eqs. (12)-(13), precomputed as arrays.
+
+Every agent i may move to a *candidate* position u_i + Delta (Delta from the displacement set of
+Eq. (3), kept only when it stays inside the area; hover, control 0, is always candidate 0) and
+transmit at a level l from L. In planning every candidate's cone aims at the planning aim x_bar
+(MODEL.md, Pointing), so
+
+- ``p_d[i, c, l]`` is Eq. (9)'s p_D(x_bar, u_i^c, l) of agent i at candidate c and level l;
+- ``gain[i, j, ci, cj]`` is the path gain g of sender j's cone (apex at its candidate cj, aimed
+  at x_bar) evaluated at receiver i's candidate ci, so that the power i receives from j is
+  ``levels_w[l_j] * gain[i, j, ci, cj]`` (Eq. 10, the left side of Eq. 13). Zero for i == j.
+
+Candidates are padded to a common count C; ``n_cand[i]`` says how many of agent i's are real,
+and ``move[i, c]`` is the index of candidate c in the displacement set (-1 for padding).
+``kernel_gain_table`` is the compiled builder of ``gain``; ``gain_table_reference`` is its
+numpy twin, held to it by the tests.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from trackjam.radio.antenna import AntennaModel, axis_of, cone_gain, kernel_cone_gain
+from trackjam.world.moves import admissible_moves, in_area
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The arrays of one planning step (shapes: N agents, C padded candidates, L levels)."""
+
+    positions: np.ndarray  # (N, 3) u_{t-1}^i [m]
+    aim: np.ndarray  # (3,) x_bar, the planning aim [m]
+    displacements: np.ndarray  # (K, 3) Eq. (3)'s set, hover first [m]
+    levels_w: np.ndarray  # (L,) transmit levels [W], increasing, levels_w[0] may be 0 (off)
+    delta_w: float  # delta, interference tolerance [W]
+    at_least: int  # n of Xi^N_n
+    constraints: bool  # enforce Eq. (13)
+    n_cand: np.ndarray  # (N,) number of admissible candidates per agent
+    move: np.ndarray  # (N, C) displacement index of each candidate, -1 = padding
+    cand_pos: np.ndarray  # (N, C, 3) candidate positions [m] (padding repeats hover)
+    p_d: np.ndarray  # (N, C, L) Eq. (9) at x_bar; 0 for padding
+    gain: np.ndarray  # (N, N, C, C) receiver i at ci, sender j at cj; 0 on i == j and padding
+
+    @property
+    def n_agents(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_levels(self) -> int:
+        return int(self.levels_w.shape[0])
+
+
+@dataclass(frozen=True)
+class Solution:
+    """A joint control: every agent's displacement and level, with its value at x_bar."""
+
+    move: np.ndarray  # (N,) index into the displacement set (0 = hover)
+    level: np.ndarray  # (N,) index into antenna.levels_w
+    objective: float  # Xi^N_n of this choice at x_bar
+    feasible: bool  # Eq. (13) holds for every agent (reported even when constraints are off)
+
+
+@njit(cache=True)
+def kernel_gain_table(cand_pos, cand_axis, n_cand, height, tan_half, r0, n_e):
+    """``gain[i, j, ci, cj]`` = g of sender j at cj (unit axis ``cand_axis[j, cj]``) seen at
+    receiver i's candidate ci; compiled twin of :func:`gain_table_reference`."""
+    N, C = cand_pos.shape[0], cand_pos.shape[1]
+    gain = np.zeros((N, N, C, C))
+    for i in range(N):
+        for j in range(N):
+            if i == j:
+                continue
+            for ci in range(n_cand[i]):
+                px, py, pz = cand_pos[i, ci, 0], cand_pos[i, ci, 1], cand_pos[i, ci, 2]
+                for cj in range(n_cand[j]):
+                    gain[i, j, ci, cj] = kernel_cone_gain(
+                        px, py, pz,
+                        cand_pos[j, cj, 0], cand_pos[j, cj, 1], cand_pos[j, cj, 2],
+                        cand_axis[j, cj, 0], cand_axis[j, cj, 1], cand_axis[j, cj, 2],
+                        height, tan_half, r0, n_e,
+                    )
+    return gain
+
+
+def gain_table_reference(cand_pos, n_cand, aim, antenna: AntennaModel) -> np.ndarray:
+    """Plain-numpy twin of :func:`kernel_gain_table`, by broadcasting :func:`cone_gain`."""
+    N, C = cand_pos.shape[:2]
+    receiver = cand_pos[:, None, :, None, :]
+    sender = cand_pos[None, :, None, :, :]
+    g = cone_gain(receiver, sender, np.broadcast_to(aim, sender.shape), antenna)
+    g = np.array(np.broadcast_to(g, (N, N, C, C)))
+    valid = np.arange(C)[None, :] < np.asarray(n_cand)[:, None]  # (N, C)
+    g *= valid[:, None, :, None] & valid[None, :, None, :]
+    g[np.arange(N), np.arange(N)] = 0.0
+    return g
+
+
+def build_problem(positions, aim, displacements, antenna: AntennaModel, low, high,
+                  at_least: int, constraints: bool) -> Problem:
+    """Precompute one step's problem: candidates inside the area, Eq. (9) and the pair gains.
+
+    Raises ``ValueError`` when an agent lies outside the area (hover must be admissible) or
+    when ``at_least`` is not in 1..N.
+    """
+    u = np.atleast_2d(np.asarray(positions, dtype=np.float64))
+    x_bar = np.asarray(aim, dtype=np.float64).reshape(3)
+    D = np.asarray(displacements, dtype=np.float64)
+    N = u.shape[0]
+    if not 1 <= at_least <= N:
+        raise ValueError(f"at_least must be in 1..{N}, got {at_least}")
+    if not np.all(in_area(u, low, high)):
+        raise ValueError("every agent must lie inside the area")
+    if np.any(D[0] != 0.0):
+        raise ValueError("control 0 of the displacement set must be hover")
+    ok = np.stack([admissible_moves(u[i], D, low, high) for i in range(N)])  # (N, K)
+    n_cand = ok.sum(axis=1).astype(np.int64)
+    C = int(n_cand.max())
+    move = np.full((N, C), -1, dtype=np.int64)
+    for i in range(N):
+        move[i, : n_cand[i]] = np.flatnonzero(ok[i])
+    cand_pos = u[:, None, :] + D[np.maximum(move, 0)]
+    valid = move >= 0
+    levels_w = np.asarray(antenna.levels_w, dtype=np.float64)
+    g_target = cone_gain(x_bar, cand_pos, np.broadcast_to(x_bar, cand_pos.shape), antenna)
+    p_d = (levels_w / antenna.l_max * antenna.p_d_max)[None, None, :] * (g_target * valid)[:, :, None]
+    cand_axis = np.ascontiguousarray(axis_of(cand_pos, np.broadcast_to(x_bar, cand_pos.shape)))
+    gain = kernel_gain_table(
+        np.ascontiguousarray(cand_pos), cand_axis, n_cand,
+        float(antenna.height), antenna.tan_half, float(antenna.r0), float(antenna.n_e),
+    )
+    return Problem(
+        positions=u, aim=x_bar, displacements=D, levels_w=levels_w, delta_w=float(antenna.delta_w),
+        at_least=int(at_least), constraints=bool(constraints), n_cand=n_cand, move=move,
+        cand_pos=cand_pos, p_d=np.ascontiguousarray(p_d), gain=gain,
+    )
