@@ -40,6 +40,13 @@ def fake_trial(scenario: Scenario) -> dict:
     }
 
 
+def failing_trial(scenario: Scenario) -> dict:
+    """``fake_trial``, except that trial 1 of every configuration raises."""
+    if scenario.name.endswith("-t1"):
+        raise RuntimeError(f"{scenario.name} failed")
+    return fake_trial(scenario)
+
+
 if __name__ == "__main__":
     from sweep_helpers import fake_trial as trial  # by module name, so workers can import it
 

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from sweep_helpers import fake_trial
+from sweep_helpers import failing_trial, fake_trial
 
 from trackjam.errors import ConfigError
 from trackjam.experiments.engine import run_experiment, summarise_folder
@@ -97,6 +97,33 @@ def test_the_summary_is_the_same_with_one_and_two_local_workers(reference, tmp_p
     assert r.summary[0]["incidents_mean"] == pytest.approx(float(rows[0]["incidents_mean"]), rel=1e-5)
 
 
+# the real simulation, as small as it gets: 3 steps, few particles, few GRASP samples
+TINY = ["filter.particles=200", "filter.birth_particles=50", "control.samples=20", "control.iterations=2"]
+
+
+def test_real_trials_give_the_same_summary_with_one_or_two_workers_and_on_dask(cluster, tmp_path):
+    address, _ = cluster
+    sweep = dict(trials=2, steps=3, seed=3, progress="none", overrides=TINY)
+    runs = {
+        "serial": run_experiment("constraints", workers=1, out=tmp_path / "serial", **sweep),
+        "pool": run_experiment("constraints", workers=2, out=tmp_path / "pool", **sweep),
+        "dask": run_experiment("constraints", scheduler=address, out=tmp_path / "dask", **sweep),
+    }
+    ref = (tmp_path / "serial" / "summary.csv").read_bytes()
+    for name in ("pool", "dask"):
+        assert (tmp_path / name / "summary.csv").read_bytes() == ref, name
+    rows = runs["serial"].summary
+    assert [r["trials"] for r in rows] == [2, 2]
+    for r in rows:  # the metrics are those of Fig. 5, in their ranges
+        assert 0 <= r["incidents_mean"] <= 3 and 0 <= r["ospa_mean"] <= 10
+        assert 0 <= r["transmit_w_mean"] <= 10**0.05 + 1e-12
+    # a trial file holds the run's per-step series
+    from trackjam.experiments.summary import read_trial
+
+    record = read_trial(tmp_path / "serial" / "trials" / "c01-t0000.parquet")
+    assert record["step.t"] == [1.0, 2.0, 3.0] and len(record["jamming_incidents"]) == 3
+
+
 def test_the_summary_is_the_same_on_a_dask_cluster_and_survives_a_worker_killed_mid_sweep(
     reference, cluster, tmp_path, monkeypatch
 ):
@@ -146,6 +173,12 @@ def test_a_rerun_skips_finished_trials_and_rebuilding_gives_the_same_summary(ref
     assert (tmp_path / "summary.csv").read_bytes() == reference
     params = json.loads((tmp_path / "experiment.json").read_text())
     assert params["experiment"] == "constraints" and params["trials"] == 2 and params["seed"] == 7
+
+
+def test_a_failing_trial_stops_the_sweep_and_keeps_the_trials_already_written(tmp_path):
+    with pytest.raises(RuntimeError, match="constraints-c1-t1 failed"):
+        run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "trial": failing_trial})
+    assert [p.name for p in (tmp_path / "trials").iterdir()] == ["c01-t0000.parquet"]
 
 
 def test_resuming_into_a_folder_of_another_experiment_is_refused(tmp_path):
