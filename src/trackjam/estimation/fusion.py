@@ -1,0 +1,103 @@
+"""Fusion of the agents' estimates (end of Section V-A).
+
+The fused existence is the mean of the agents' existence probabilities,
+``e_hat = mean{e^j}``. The agents that sense the target, ``N~ = {j | e^j > 0.5}``, combine
+their means and covariances by covariance intersection (Julier & Uhlmann):
+
+    C^{-1} = sum_j omega_j (C^j)^{-1},   x_hat = C sum_j omega_j (C^j)^{-1} x^j,
+
+with the weights ``omega`` on the simplex that minimise ``trace(C)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+
+from trackjam.estimation.bernoulli import Estimate
+
+CONFIRM = 0.5  # an agent senses the target when e^j > 0.5 (Section V-A)
+
+
+@dataclass(frozen=True)
+class FusedEstimate:
+    existence: float  # e_hat, mean of the agents' e^j
+    mean: np.ndarray | None  # (6,) fused state, None when no agent has e^j > 0.5
+    cov: np.ndarray | None  # (6, 6)
+    weights: np.ndarray  # omega_j per input estimate (0 for agents not in N~)
+
+
+def _inverse(C: np.ndarray) -> np.ndarray:
+    C = 0.5 * (C + C.T)
+    try:
+        return np.linalg.inv(C)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(C, hermitian=True)
+
+
+def _fuse_with(omega: np.ndarray, infos: np.ndarray, info_means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    info = np.tensordot(omega, infos, axes=1)
+    C = _inverse(info)
+    return C @ (omega @ info_means), 0.5 * (C + C.T)
+
+
+def covariance_intersection(means, covs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Covariance intersection of ``k`` Gaussian estimates; returns ``(mean, cov, omega)``.
+
+    ``omega`` minimises ``trace(C(omega))`` over the simplex: a bounded scalar search for two
+    estimates, SLSQP over the simplex (started at the centre, so the result does not depend on
+    the order of the inputs beyond the optimiser's tolerance) for more.
+    """
+    means = np.asarray(means, dtype=float)
+    covs = np.asarray(covs, dtype=float)
+    k = len(means)
+    if k == 0:
+        raise ValueError("covariance intersection needs at least one estimate")
+    infos = np.stack([_inverse(C) for C in covs])
+    info_means = np.einsum("kij,kj->ki", infos, means)
+    if k == 1:
+        omega = np.ones(1)
+    elif k == 2:
+        def trace2(w: float) -> float:
+            return float(np.trace(_inverse(w * infos[0] + (1 - w) * infos[1])))
+
+        res = minimize_scalar(trace2, bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-10})
+        w = float(res.x)
+        # the bounded search never evaluates the end points themselves
+        candidates = [(trace2(w), w), (trace2(0.0), 0.0), (trace2(1.0), 1.0)]
+        w = min(candidates)[1]
+        omega = np.array([w, 1.0 - w])
+    else:
+        def trace_k(w: np.ndarray) -> float:
+            return float(np.trace(_inverse(np.tensordot(w, infos, axes=1))))
+
+        res = minimize(
+            trace_k,
+            np.full(k, 1.0 / k),
+            method="SLSQP",
+            bounds=[(0.0, 1.0)] * k,
+            constraints=[{"type": "eq", "fun": lambda w: np.sum(w) - 1.0}],
+            options={"ftol": 1e-12, "maxiter": 200},
+        )
+        omega = np.clip(res.x, 0.0, None)
+        omega /= omega.sum()
+    mean, cov = _fuse_with(omega, infos, info_means)
+    return mean, cov, omega
+
+
+def fuse(estimates: list[Estimate]) -> FusedEstimate:
+    """The team's estimate: mean existence, and the CI of the agents with e^j > 0.5."""
+    if not estimates:
+        raise ValueError("fuse needs at least one estimate")
+    existence = float(np.mean([est.existence for est in estimates]))
+    weights = np.zeros(len(estimates))
+    sensing = [j for j, est in enumerate(estimates) if est.existence > CONFIRM]
+    if not sensing:
+        return FusedEstimate(existence, None, None, weights)
+    mean, cov, omega = covariance_intersection(
+        [estimates[j].mean for j in sensing], [estimates[j].cov for j in sensing]
+    )
+    weights[sensing] = omega
+    return FusedEstimate(existence, mean, cov, weights)

@@ -1,0 +1,185 @@
+"""Compiled hot loops of the Bernoulli particle filter (Section V-A).
+
+:func:`kernel_update_factors` is the per-particle part of the update: for particle ``x_i`` it
+returns ``p_D(x_i)`` (Eq. 9) and the log of the update factor
+
+    L_i = (1 - p_D(x_i)) + p_D(x_i) * sum_{y in Y_t} g_t(y | x_i, u_t) / (lambda_c p_c(y)),
+
+so that ``s_t(x_i) ∝ L_i s_{t|t-1}(x_i)`` and ``1 - q_t = sum_i w_i L_i``. Everything is in the
+log domain (a clutter-free likelihood ratio g / (lambda_c p_c) easily reaches 1e3).
+``tests/estimation/test_kernels.py`` holds it to a plain-numpy twin.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from trackjam.radio.antenna import kernel_cone_gain
+
+_LOG_2PI = math.log(2.0 * math.pi)
+GATE = 11.0  # range gate in standard deviations (exp(-GATE^2 / 2) < 1e-26)
+
+
+@njit(cache=True)
+def _wrap(a):
+    """Wrap an angle to [-pi, pi] (the sign at pi is irrelevant inside a Gaussian)."""
+    if a > math.pi or a < -math.pi:
+        return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+    return a
+
+
+@njit(cache=True)
+def kernel_update_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_lambda_c):
+    """Per particle: ``p_D`` and ``log L_i`` (see the module docstring).
+
+    ``X`` (n, 6) particles, ``Z`` (m, 3) measurements [rho, az, incl], ``u`` (3,) agent
+    position, ``axis`` (3,) unit antenna axis, ``p_d_scale = (l / l_max) p_D^max``,
+    ``noise_std`` (3,) the diagonal of Sigma_w as standard deviations,
+    ``log_lambda_c = log(lambda_c p_c)``.
+    """
+    n = X.shape[0]
+    m = Z.shape[0]
+    p_d = np.empty(n)
+    log_L = np.empty(n)
+    s0, s1, s2 = noise_std[0], noise_std[1], noise_std[2]
+    # t_j = log g(y_j | x) - log(lambda_c p_c) = c_max - 0.5 * (Mahalanobis distance)^2
+    c_max = -1.5 * _LOG_2PI - math.log(s0) - math.log(s1) - math.log(s2) - log_lambda_c
+    linear = c_max < 700.0  # exp(c_max) is finite: L_i can be formed directly
+    K = math.exp(c_max) if linear else 0.0
+    for i in range(n):
+        pd = p_d_scale * kernel_cone_gain(
+            X[i, 0], X[i, 1], X[i, 2], u[0], u[1], u[2], axis[0], axis[1], axis[2], height, tan_half, r0, n_e
+        )
+        p_d[i] = pd
+        miss = 1.0 - pd
+        if pd <= 0.0 or m == 0:
+            log_L[i] = math.log(miss) if miss > 0.0 else -np.inf
+            continue
+        dx = X[i, 0] - u[0]
+        dy = X[i, 1] - u[1]
+        dz = X[i, 2] - u[2]
+        rho_xy = math.sqrt(dx * dx + dy * dy)
+        rho = math.sqrt(rho_xy * rho_xy + dz * dz)
+        # S = sum_j exp(t_j - c_max); a measurement more than GATE standard deviations away
+        # in range adds less than exp(-GATE^2 / 2) ~ 1e-26 and is skipped
+        S = 0.0
+        have_angles = False
+        az = 0.0
+        inc = 0.0
+        for j in range(m):
+            e0 = (Z[j, 0] - rho) / s0
+            if e0 > GATE or e0 < -GATE:
+                continue
+            if not have_angles:
+                az = math.atan2(dy, dx)
+                inc = math.atan2(rho_xy, dz)
+                have_angles = True
+            e1 = _wrap(Z[j, 1] - az) / s1
+            e2 = _wrap(Z[j, 2] - inc) / s2
+            S += math.exp(-0.5 * (e0 * e0 + e1 * e1 + e2 * e2))
+        if linear:
+            L = miss + pd * K * S
+            log_L[i] = math.log(L) if L > 0.0 else -np.inf
+        elif S > 0.0:
+            log_detect = math.log(pd) + c_max + math.log(S)
+            log_miss = math.log(miss) if miss > 0.0 else -np.inf
+            hi = max(log_miss, log_detect)
+            log_L[i] = hi + math.log1p(math.exp(min(log_miss, log_detect) - hi))
+        else:
+            log_L[i] = math.log(miss) if miss > 0.0 else -np.inf
+    return p_d, log_L
+
+
+@njit(cache=True)
+def kernel_logsumexp(a):
+    """log(sum(exp(a))) of a 1-D array; -inf when every entry is -inf."""
+    mx = -np.inf
+    for v in a:
+        if v > mx:
+            mx = v
+    if mx == -np.inf:
+        return -np.inf
+    acc = 0.0
+    for v in a:
+        acc += math.exp(v - mx)
+    return mx + math.log(acc)
+
+
+@njit(cache=True)
+def kernel_weighted_moments(X, w):
+    """Mean (6,) and covariance (6, 6) of particles ``X`` (n, 6) with normalised weights ``w``."""
+    n = X.shape[0]
+    mean = np.zeros(6)
+    for i in range(n):
+        for a in range(6):
+            mean[a] += w[i] * X[i, a]
+    acc = np.zeros(36)
+    diff = np.empty(6)
+    for i in range(n):
+        wi = w[i]
+        for a in range(6):
+            diff[a] = X[i, a] - mean[a]
+        for a in range(6):
+            wa = wi * diff[a]
+            for b in range(6):
+                acc[a * 6 + b] += wa * diff[b]
+    cov = acc.reshape((6, 6))
+    return mean, 0.5 * (cov + cov.T)
+
+
+@njit(cache=True)
+def kernel_log_gaussian_mixture(d, Linv, log_det):
+    """log of (1/k) sum_j N(d[i, j]; 0, Sigma_j) for residuals ``d`` (n, k, 3), given the inverse
+    Cholesky factors ``Linv`` (k, 3, 3) and ``log_det[j] = log det L_j``."""
+    n, k, _ = d.shape
+    out = np.empty(n)
+    c = -1.5 * _LOG_2PI - math.log(k)
+    for i in range(n):
+        mx = -np.inf
+        acc = 0.0
+        for j in range(k):
+            q = 0.0
+            for a in range(3):
+                y = 0.0
+                for b in range(a + 1):
+                    y += Linv[j, a, b] * d[i, j, b]
+                q += y * y
+            t = -log_det[j] - 0.5 * q
+            if t > mx:
+                acc = acc * math.exp(mx - t) + 1.0
+                mx = t
+            else:
+                acc += math.exp(t - mx)
+        out[i] = c + mx + math.log(acc)
+    return out
+
+
+@njit(cache=True)
+def kernel_systematic_indices(w, n_out, u0):
+    """Systematic resampling: indices of ``n_out`` draws from normalised weights ``w`` with the
+    single uniform offset ``u0`` in [0, 1)."""
+    idx = np.empty(n_out, dtype=np.int64)
+    c = w[0]
+    k = 0
+    n = w.shape[0]
+    for i in range(n_out):
+        pos = (i + u0) / n_out
+        while pos > c and k < n - 1:
+            k += 1
+            c += w[k]
+        idx[i] = k
+    return idx
+
+
+@njit(cache=True)
+def kernel_cv_predict(X, xi, dt, sigma_a):
+    """Eq. (1) in place: x <- Phi x + Gamma nu with nu = sigma_a * xi, xi (n, 3) standard normal."""
+    h = 0.5 * dt * dt
+    for i in range(X.shape[0]):
+        for a in range(3):
+            nu = sigma_a * xi[i, a]
+            X[i, a] += dt * X[i, 3 + a] + h * nu
+            X[i, 3 + a] += dt * nu
