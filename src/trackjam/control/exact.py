@@ -64,12 +64,13 @@ def _admissible(k, kk, d, order, gain, levels_w, delta, c, lv, recv, L):
 
 @njit(cache=True)
 def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n_pairs,
-                            best_cand, best_level):
+                            best_cand, best_level, max_nodes):
     """Maximise Xi^N_n subject to Eq. (13) (when ``constrained``).
 
     ``best_cand``/``best_level`` (N,) hold the starting incumbent on entry and the optimum on
-    exit; returns its value (-inf when nothing feasible was found). Also returns the number of
-    nodes visited.
+    exit. Returns (value, nodes visited, proven): value is -inf when nothing feasible was
+    found; ``proven`` is False only when ``max_nodes`` > 0 stopped the search early (then the
+    incumbent is the best found so far).
     """
     N = p_d.shape[0]
     L = levels_w.shape[0]
@@ -102,6 +103,8 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
             r = cur[d]
             cur[d] += 1
             nodes += 1
+            if max_nodes > 0 and nodes > max_nodes:
+                return best, nodes, False
             for j in range(d):
                 pv[j] = p[j]
             pv[d] = ps[d, r]
@@ -151,7 +154,7 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
             break
         if not descended:
             d -= 1
-    return best, nodes
+    return best, nodes, True
 
 
 def solve_exact(problem: Problem) -> Solution:
@@ -162,7 +165,7 @@ def solve_exact(problem: Problem) -> Solution:
     level = np.zeros(N, dtype=np.int64)
     kernel_branch_and_bound(
         problem.p_d, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
-        problem.constraints, order, n_pairs, cand, level,
+        problem.constraints, order, n_pairs, cand, level, 0,
     )
     return to_solution(problem, cand, level)
 

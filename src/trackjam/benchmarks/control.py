@@ -1,0 +1,187 @@
+"""Benchmarks of the step's cooperative control on random instances drawn like the paper's
+trials (Section VI): target uniform in the area, N agents uniform in a 20 m ball around it
+(clipped to the area), aim x_bar = the target's position, the paper's antenna with an opening
+angle drawn from {60, 80, 100, 120} deg, N = 3 and n = 2 unless stated.
+
+Every function returns a plain dict (times in milliseconds, wall clock, one thread unless
+stated). ``run(quick=True)`` runs them all in well under 2 minutes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from trackjam.config import load_scenario
+from trackjam.control.exact import kernel_branch_and_bound, pair_order, solve_exact
+from trackjam.control.grasp import solve_grasp
+from trackjam.control.problem import build_problem
+from trackjam.radio.antenna import AntennaModel
+from trackjam.world.moves import displacement_set
+
+#: displacement sets by their number of controls: (radial steps [m], N_phi, N_theta)
+CONTROL_CASES = {79: ([1.0, 3.0, 5.0], 8, 8), 175: ([1.0, 3.0, 5.0], 16, 8), 11: ([3.0], 4, 8)}
+OPENING_ANGLES_DEG = (60.0, 80.0, 100.0, 120.0)
+LOW, HIGH = np.zeros(3), np.full(3, 100.0)
+
+
+def paper_antenna(opening_deg: float) -> AntennaModel:
+    s = load_scenario("paper-fig3")
+    a = AntennaModel.from_scenario(s)
+    return dataclasses.replace(a, half_angle=float(np.deg2rad(opening_deg) / 2))
+
+
+def draw_instance(rng: np.random.Generator, n_agents: int = 3, radius: float = 20.0):
+    """(positions (N,3), aim (3,), opening angle [deg]) of one paper-like trial's first step."""
+    x = rng.uniform(LOW, HIGH)
+    d = rng.normal(size=(n_agents, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    r = radius * rng.uniform(size=(n_agents, 1)) ** (1 / 3)
+    u = np.clip(x + r * d, LOW, HIGH)
+    return u, x, float(rng.choice(OPENING_ANGLES_DEG))
+
+
+def _problems(n_controls: int, instances: int, seed: int, n_agents: int = 3, at_least: int = 2,
+              constraints: bool = True):
+    D = displacement_set(*CONTROL_CASES[n_controls])
+    rng = np.random.default_rng(seed)
+    antennas = {a: paper_antenna(a) for a in OPENING_ANGLES_DEG}
+    out = []
+    for _ in range(instances):
+        u, x, a = draw_instance(rng, n_agents)
+        out.append(build_problem(u, x, D, antennas[a], LOW, HIGH, at_least, constraints))
+    return out
+
+
+def _stats(ms: list[float]) -> dict:
+    a = np.asarray(ms)
+    return {"median_ms": float(np.median(a)), "p95_ms": float(np.percentile(a, 95)), "max_ms": float(a.max())}
+
+
+def _time_exact(P, max_nodes: int = 0):
+    order, n_pairs = pair_order(P)
+    cand = np.zeros(P.n_agents, dtype=np.int64)
+    level = np.zeros(P.n_agents, dtype=np.int64)
+    t = time.perf_counter()
+    value, nodes, proven = kernel_branch_and_bound(
+        P.p_d, P.gain, P.levels_w, P.delta_w, P.at_least, P.constraints, order, n_pairs,
+        cand, level, max_nodes,
+    )
+    return 1e3 * (time.perf_counter() - t), value, nodes, proven
+
+
+def _warm():
+    P = _problems(11, 1, 0)[0]
+    solve_exact(P)
+    solve_grasp(P, [np.random.default_rng(i) for i in range(3)], samples=10, iterations=2)
+
+
+def bench_exact(n_controls: int = 79, instances: int = 200, seed: int = 0, constraints: bool = True) -> dict:
+    """Time of the exact solver (branch and bound only, and with the problem's build)."""
+    _warm()
+    solve_ms, total_ms, nodes = [], [], []
+    D = displacement_set(*CONTROL_CASES[n_controls])
+    rng = np.random.default_rng(seed)
+    antennas = {a: paper_antenna(a) for a in OPENING_ANGLES_DEG}
+    for _ in range(instances):
+        u, x, a = draw_instance(rng)
+        t = time.perf_counter()
+        P = build_problem(u, x, D, antennas[a], LOW, HIGH, 2, constraints)
+        build = 1e3 * (time.perf_counter() - t)
+        ms, _, k, _ = _time_exact(P)
+        solve_ms.append(ms)
+        total_ms.append(ms + build)
+        nodes.append(k)
+    return {
+        "controls": n_controls, "instances": instances, "constraints": constraints,
+        "solve": _stats(solve_ms), "build_and_solve": _stats(total_ms),
+        "nodes_median": float(np.median(nodes)), "nodes_max": int(np.max(nodes)),
+    }
+
+
+def bench_grasp(n_controls: int = 79, instances: int = 20, seed: int = 0, samples: int = 10000,
+                iterations: int = 100, threads: int = 1) -> dict:
+    """Time per step of GRASP (all agents' searches) and its value relative to the optimum.
+
+    The ratio is Xi(GRASP) / Xi(exact) over the instances whose optimum is > 0.
+    """
+    _warm()
+    ms, ratios = [], []
+    for k, P in enumerate(_problems(n_controls, instances, seed)):
+        rngs = [np.random.default_rng([seed, k, j]) for j in range(P.n_agents)]
+        t = time.perf_counter()
+        g = solve_grasp(P, rngs, samples=samples, iterations=iterations, threads=threads)
+        ms.append(1e3 * (time.perf_counter() - t))
+        e = solve_exact(P)
+        if e.objective > 0:
+            ratios.append(g.objective / e.objective)
+    r = np.asarray(ratios) if ratios else np.ones(1)
+    return {
+        "controls": n_controls, "instances": instances, "samples": samples, "iterations": iterations,
+        "threads": threads, "time": _stats(ms), "ratio_mean": float(r.mean()), "ratio_worst": float(r.min()),
+        "reached_optimum": float(np.mean(r >= 1 - 1e-12)), "instances_with_positive_optimum": len(ratios),
+    }
+
+
+def bench_scaling(n_agents=range(2, 7), instances: int = 10, seed: int = 0, samples: int = 10000,
+                  iterations: int = 100, budget_s: float = 1.0, max_agents: int = 12,
+                  grasp: bool = True) -> dict:
+    """Exact and GRASP time per step for N agents at 79 controls (n = 2), and the largest N
+    whose exact p95 time stays within ``budget_s`` (N grown past the table up to
+    ``max_agents`` until it does not; a search is stopped after 2e7 nodes and counts as over)."""
+    _warm()
+    rows = []
+    largest = 0
+    N = min(n_agents)
+    table = set(n_agents)
+    while N <= max(max(table), max_agents):
+        probs = _problems(79, instances, seed + N, n_agents=N)
+        ex = [_time_exact(P, max_nodes=20_000_000) for P in probs]
+        ex_ms = [e[0] for e in ex]
+        proven = all(e[3] for e in ex)
+        row = {"agents": N, "exact": _stats(ex_ms), "exact_proven": proven}
+        if grasp and N in table:
+            g_ms = []
+            for k, P in enumerate(probs):
+                rngs = [np.random.default_rng([seed, k, j]) for j in range(N)]
+                t = time.perf_counter()
+                solve_grasp(P, rngs, samples=samples, iterations=iterations)
+                g_ms.append(1e3 * (time.perf_counter() - t))
+            row["grasp"] = _stats(g_ms)
+        rows.append(row)
+        within = proven and row["exact"]["p95_ms"] <= 1e3 * budget_s
+        if within:
+            largest = N
+        if N >= max(table) and not within:
+            break
+        N += 1
+    return {"controls": 79, "instances": instances, "budget_s": budget_s, "rows": rows,
+            "largest_exact_within_budget": largest}
+
+
+def run(quick: bool = True, seed: int = 0) -> dict:
+    """All the control benchmarks; ``quick`` keeps the total well under 2 minutes."""
+    if quick:
+        return {
+            "exact_79": bench_exact(79, 100, seed),
+            "exact_175": bench_exact(175, 50, seed),
+            "grasp_79": bench_grasp(79, 8, seed),
+            "scaling": bench_scaling(range(2, 7), 4, seed, samples=2000, iterations=20, max_agents=8),
+        }
+    return {
+        "exact_79": bench_exact(79, 1000, seed),
+        "exact_175": bench_exact(175, 500, seed),
+        "exact_79_unconstrained": bench_exact(79, 1000, seed, constraints=False),
+        "grasp_79": bench_grasp(79, 50, seed),
+        "grasp_79_threads": bench_grasp(79, 50, seed, threads=2),
+        "scaling": bench_scaling(range(2, 7), 20, seed),
+    }
+
+
+if __name__ == "__main__":
+    import json
+    import sys
+
+    print(json.dumps(run(quick="--full" not in sys.argv), indent=1))

@@ -1,0 +1,74 @@
+"""Xi^N_n of Eq. (12) as a Poisson-binomial tail, checked against the paper's xi formula."""
+
+import itertools
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from trackjam.control.objective import at_least_probability, kernel_at_least, received_interference
+
+
+def xi_paper(p, m):
+    """Eq. (12) literally: sum over subsets {i_1 < ... < i_m} of prod_j (1 - p^j) p^{i_k}/(1 - p^{i_k})."""
+    N = len(p)
+    total = 0.0
+    for subset in itertools.combinations(range(N), m):
+        term = 1.0
+        for j in range(N):
+            term *= 1 - p[j]
+        for i in subset:
+            term *= p[i] / (1 - p[i])
+        total += term
+    return total
+
+
+probs = st.lists(st.floats(0.0, 0.95), min_size=1, max_size=5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(probs, st.integers(0, 6))
+def test_at_least_equals_sum_of_paper_xi(p, n):
+    expected = sum(xi_paper(p, m) for m in range(max(n, 0), len(p) + 1)) if n <= len(p) else 0.0
+    assert np.isclose(at_least_probability(p, n), expected, rtol=1e-12, atol=1e-14)
+    q = np.empty(n + 1)
+    assert np.isclose(kernel_at_least(np.array(p), n, q), expected, rtol=1e-12, atol=1e-14)
+
+
+def test_kernel_equals_numpy_bit_for_bit():
+    rng = np.random.default_rng(3)
+    p = rng.uniform(0, 1, (200, 6))
+    for n in range(0, 8):
+        ref = at_least_probability(p, n)
+        q = np.empty(n + 1)
+        assert all(kernel_at_least(p[k], n, q) == ref[k] for k in range(200))
+
+
+def test_closed_forms():
+    p = np.array([0.3, 0.6, 0.9])
+    assert np.isclose(at_least_probability(p, 1), 1 - 0.7 * 0.4 * 0.1)
+    assert np.isclose(at_least_probability(p, 3), 0.3 * 0.6 * 0.9)
+    assert at_least_probability(p, 0) == 1.0 and at_least_probability(p, 4) == 0.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=2, max_size=6), st.integers(1, 6), st.integers(0, 5), st.floats(0, 1))
+def test_xi_is_non_decreasing_in_each_p(p, n, j, bump):
+    """The exact solver's bound rests on this."""
+    p = np.array(p)
+    j = j % len(p)
+    hi = p.copy()
+    hi[j] = p[j] + (1 - p[j]) * bump
+    assert at_least_probability(hi, n) >= at_least_probability(p, n) - 1e-15
+
+
+def test_interference_is_the_eq13_sum():
+    rng = np.random.default_rng(0)
+    N, C = 3, 4
+    gain = rng.uniform(0, 1, (N, N, C, C))
+    gain[np.arange(N), np.arange(N)] = 0
+    levels_w = np.array([0.0, 1e-5, 0.2, 1.1])
+    cand, level = np.array([1, 3, 0]), np.array([2, 0, 3])
+    r = received_interference(gain, levels_w, cand, level)
+    for i in range(N):
+        assert np.isclose(r[i], sum(levels_w[level[j]] * gain[i, j, cand[i], cand[j]] for j in range(N) if j != i))
