@@ -46,11 +46,25 @@ def pair_order(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     return order, n_pairs
 
 
+_ONE = np.uint64(1)
+_ZERO = np.uint64(0)
+_ALL = ~np.uint64(0)
+_DEBRUIJN = np.uint64(0x03F79D71B4CB0A89)
+_CTZ = np.zeros(64, dtype=np.int64)
+for _b in range(64):
+    _CTZ[((1 << _b) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = _b
+
+
 @njit(cache=True)
-def _admissible(k, kk, d, order, gain, levels_w, delta, c, lv, recv, L):
-    """Whether agent ``k``'s pair ``kk`` keeps Eq. (13) against agents 0..d already placed."""
-    ck = kk // L
-    lk = kk - ck * L
+def _ctz(m):
+    """Index of the lowest set bit of a non-zero uint64."""
+    low = m & (~m + _ONE)
+    return _CTZ[np.int64((low * _DEBRUIJN) >> np.uint64(58))]
+
+
+@njit(cache=True)
+def _admissible(k, ck, lk, d, gain, levels_w, delta, c, lv, recv):
+    """Whether agent ``k`` at (ck, lk) keeps Eq. (13) against agents 0..d already placed."""
     inc = 0.0
     for j in range(d + 1):
         inc += levels_w[lv[j]] * gain[k, j, ck, c[j]]
@@ -60,6 +74,45 @@ def _admissible(k, kk, d, order, gain, levels_w, delta, c, lv, recv, L):
         if recv[d, j] + levels_w[lk] * gain[j, k, c[j], ck] >= delta:
             return False
     return True
+
+
+@njit(cache=True)
+def _pair_row(j, rj, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows):
+    """Bitsets ``rows[j, rj, k]`` (k > j): ranks of agent k compatible, pair by pair, with
+    agent j at rank rj (neither puts delta or more on the other)."""
+    N = n_pairs.shape[0]
+    cj = rank_c[j, rj]
+    wj = levels_w[rank_l[j, rj]]
+    for k in range(j + 1, N):
+        for rk in range(n_pairs[k]):
+            ck = rank_c[k, rk]
+            if wj * gain[k, j, ck, cj] < delta and levels_w[rank_l[k, rk]] * gain[j, k, cj, ck] < delta:
+                rows[j, rj, k, rk >> 6] |= _ONE << np.uint64(rk & 63)
+
+
+@njit(cache=True)
+def _first_admissible(k, start, d, rank, rank_c, rank_l, n_pairs, rows, gain, levels_w, delta, c, lv, recv):
+    """First rank >= ``start`` of agent k admissible against agents 0..d (n_pairs[k] if none).
+
+    Candidates come from the AND of the pairwise bitsets; the exact sum of Eq. (13) is checked
+    on each (pairwise compatibility is necessary, and sufficient when d == 0)."""
+    W = rows.shape[3]
+    w = start >> 6
+    while w < W and w * 64 < n_pairs[k]:
+        m = _ALL
+        for j in range(d + 1):
+            m &= rows[j, rank[j], k, w]
+        if w == start >> 6:
+            m &= _ALL << np.uint64(start & 63)
+        while m != _ZERO:
+            r = w * 64 + _ctz(m)
+            if r >= n_pairs[k]:
+                return n_pairs[k]
+            if d == 0 or _admissible(k, rank_c[k, r], rank_l[k, r], d, gain, levels_w, delta, c, lv, recv):
+                return r
+            m &= m - _ONE
+        w += 1
+    return n_pairs[k]
 
 
 @njit(cache=True)
@@ -74,15 +127,24 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
     """
     N = p_d.shape[0]
     L = levels_w.shape[0]
+    P = order.shape[1]
     q = np.empty(n + 1)
     pv = np.empty(N)
-    ps = np.zeros(order.shape)  # p_D of each ranked pair
+    ps = np.zeros((N, P))  # p_D of each ranked pair
+    rank_c = np.zeros((N, P), dtype=np.int64)
+    rank_l = np.zeros((N, P), dtype=np.int64)
     for i in range(N):
         for r in range(n_pairs[i]):
             kk = order[i, r]
-            ps[i, r] = p_d[i, kk // L, kk % L]
+            rank_c[i, r] = kk // L
+            rank_l[i, r] = kk % L
+            ps[i, r] = p_d[i, rank_c[i, r], rank_l[i, r]]
+    W = (P + 63) // 64 if constrained else 1
+    rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
+    have = np.zeros((N, P), dtype=np.bool_)
     c = np.zeros(N, dtype=np.int64)
     lv = np.zeros(N, dtype=np.int64)
+    rank = np.zeros(N, dtype=np.int64)
     p = np.zeros(N)
     recv = np.zeros((N, N))  # recv[d, j]: power at agent j from agents 0..d
     bptr = np.zeros((N + 1, N), dtype=np.int64)  # first admissible rank of agent k given 0..d-1
@@ -101,7 +163,13 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
         descended = False
         while cur[d] < n_pairs[d]:
             r = cur[d]
-            cur[d] += 1
+            if constrained and d > 0:
+                r = _first_admissible(d, r, d - 1, rank, rank_c, rank_l, n_pairs, rows, gain,
+                                      levels_w, delta, c, lv, recv)
+                if r == n_pairs[d]:
+                    cur[d] = r
+                    break
+            cur[d] = r + 1
             nodes += 1
             if max_nodes > 0 and nodes > max_nodes:
                 return best, nodes, False
@@ -114,17 +182,15 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
             if bound <= best:
                 cur[d] = n_pairs[d]  # later pairs of agent d have lower or equal p_D
                 break
-            kk = order[d, r]
-            if constrained and not _admissible(d, kk, d - 1, order, gain, levels_w, delta, c, lv, recv, L):
-                continue
-            c[d] = kk // L
-            lv[d] = kk - c[d] * L
+            c[d] = rank_c[d, r]
+            lv[d] = rank_l[d, r]
+            rank[d] = r
             p[d] = ps[d, r]
             if constrained:
                 inc = 0.0
                 for j in range(d):
                     inc += levels_w[lv[j]] * gain[d, j, c[d], c[j]]
-                    recv[d, j] = (recv[d - 1, j] if d > 0 else 0.0) + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
+                    recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
                 recv[d, d] = inc
             if d == N - 1:
                 best = bound
@@ -132,12 +198,15 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
                 best_level[:] = lv
                 cur[d] = n_pairs[d]
                 break
+            if constrained and not have[d, r]:
+                _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows)
+                have[d, r] = True
             dead = False
             for k in range(d + 1, N):
                 rr = bptr[d, k]
                 if constrained:
-                    while rr < n_pairs[k] and not _admissible(k, order[k, rr], d, order, gain, levels_w, delta, c, lv, recv, L):
-                        rr += 1
+                    rr = _first_admissible(k, rr, d, rank, rank_c, rank_l, n_pairs, rows, gain,
+                                           levels_w, delta, c, lv, recv)
                 if rr == n_pairs[k]:
                     dead = True
                     break
