@@ -1,0 +1,189 @@
+"""The interactive replay: one frame per step, cones of the right shape, self-contained HTML that
+a headless Chromium loads without a JavaScript error and renders."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+from fake_run import fake_run
+from test_figure import quiet_run
+
+from trackjam.radio.antenna import AntennaModel, inside_cone
+from trackjam.viz.figure import interference_per_step
+from trackjam.viz.replay import cone_mesh, replay_figure, write_replay
+
+ERROR_HOOK = """<script>
+function __trackjamReport(msg) {
+  var d = document.getElementById('js-errors');
+  if (!d) { d = document.createElement('pre'); d.id = 'js-errors';
+            (document.body || document.documentElement).appendChild(d); }
+  d.textContent += msg + '\\n';
+}
+window.addEventListener('error', function (e) { __trackjamReport('Uncaught ' + e.message); });
+window.addEventListener('unhandledrejection', function (e) { __trackjamReport('Unhandled ' + e.reason); });
+</script>"""
+
+# Once the plot and its frames exist, go to the last frame as the slider does, wait until the
+# page shows it (the promise of Plotly.animate may wait on animation frames that headless
+# Chromium does not always run), then report what the page shows.
+PROBE = """<script>
+(function () {
+  var tries = 0, gd = null, last = null;
+  function report() {
+    var out = document.createElement('pre');
+    out.id = 'replay-probe';
+    out.textContent = JSON.stringify({
+      frames: gd._transitionData._frames.length, traces: gd.data.length,
+      title: gd.layout.title.text,
+      webgl: !!(gd._fullLayout.scene._scene && gd._fullLayout.scene._scene.glplot)});
+    document.body.appendChild(out);
+  }
+  var timer = setInterval(function () {
+    tries += 1;
+    if (tries > 400) { clearInterval(timer); __trackjamReport('probe timed out'); return; }
+    if (last === null) {
+      gd = document.getElementById('trackjam-replay');
+      if (!(gd && gd._fullLayout && gd._transitionData && gd._transitionData._frames.length)) return;
+      var frames = gd._transitionData._frames;
+      last = frames[frames.length - 1].name;
+      Plotly.animate(gd, [last], {frame: {duration: 0, redraw: true}, transition: {duration: 0},
+                                  mode: 'immediate'}).catch(function (e) { __trackjamReport('animate: ' + e); });
+    } else if (gd.layout.title.text.indexOf('t = ' + last + ' ') === 0) {
+      clearInterval(timer);
+      report();
+    }
+  }, 25);
+})();
+</script>"""
+
+CHROMIUM_FLAGS = [
+    "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
+    "--no-first-run", "--disable-background-networking", "--disable-component-update",
+    "--disable-sync", "--enable-logging=stderr", "--v=0", "--window-size=1000,800",
+    "--virtual-time-budget=5000",
+]
+
+
+@pytest.fixture(scope="module")
+def run():
+    return fake_run()
+
+
+@pytest.fixture(scope="module")
+def replay_html(run, tmp_path_factory):
+    steps, agents, scenario = run
+    return write_replay(steps, agents, scenario, tmp_path_factory.mktemp("replay") / "replay.html")
+
+
+def _chromium(chromium, tmp_path, html, *args):
+    cmd = [str(chromium), *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}", *args,
+           html.resolve().as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc
+
+
+def test_cone_mesh_is_the_sensing_cone():
+    """Apex at the agent, rim at h_a along the axis with radius h_a tan(theta_a/2) (MODEL.md)."""
+    apex, point = np.array([10.0, 20.0, 30.0]), np.array([40.0, 0.0, 50.0])
+    h, half = 40.0, np.deg2rad(40)
+    v, f = cone_mesh(apex, point, h, half, segments=16)
+    axis = (point - apex) / np.linalg.norm(point - apex)
+    rim = v[1:-1]
+    np.testing.assert_allclose(v[0], apex)
+    np.testing.assert_allclose((rim - apex) @ axis, h)
+    np.testing.assert_allclose(np.linalg.norm(rim - v[-1], axis=1), h * np.tan(half))
+    np.testing.assert_allclose(v[-1], apex + h * axis)
+    assert f.shape == (32, 3) and f.min() == 0 and f.max() == len(v) - 1
+    # the rim bounds the cone the radio model uses: a little inward is inside, outward is not
+    centre = v[-1]
+    assert inside_cone(centre + 0.99 * (rim - centre), apex, point, h, half).all()
+    assert not inside_cone(centre + 1.01 * (rim - centre), apex, point, h, half).any()
+
+
+def test_one_frame_per_step_with_title_and_cones(run):
+    steps, agents, scenario = run
+    fig = replay_figure(steps, agents, scenario)
+    T, N = scenario.steps, scenario.n_agents
+    assert [f.name for f in fig.frames] == [str(t) for t in range(1, T + 1)]
+    power = agents["power_w"].reshape(T, N)
+    for k, frame in enumerate(fig.frames):
+        assert len(frame.data) == len(fig.data)
+        assert frame.layout.title.text.startswith(f"t = {k + 1} ")
+        cones = [tr for tr in frame.data if tr.type == "mesh3d"]
+        assert len(cones) == N
+        for j, cone in enumerate(cones):
+            drawn = np.ptp(np.asarray(cone.x)) > 0
+            assert drawn == (power[k, j] > 0)  # an antenna that is off draws no cone
+
+
+def test_jammed_agents_and_jamming_links_follow_the_logs(run):
+    steps, agents, scenario = run
+    fig = replay_figure(steps, agents, scenario)
+    T, N = scenario.steps, scenario.n_agents
+    R = interference_per_step(agents, scenario)
+    delta = AntennaModel.from_scenario(scenario).delta_w
+    jammed = agents["jammed"].reshape(T, N)
+    x = agents["x"].reshape(T, N)
+    for k, frame in enumerate(fig.frames):
+        by_name = {tr.name: tr for tr in frame.data}
+        ring = by_name["jammed agent (red ring)"]
+        assert sorted(np.asarray(ring.x, dtype=float)) == sorted(x[k, jammed[k]])
+        links = np.asarray(by_name["jams (sender -> receiver)"].x, dtype=float)
+        assert np.isnan(links).sum() == (R[k] >= delta).sum()
+
+
+def test_quiet_run_replays(tmp_path):
+    steps, agents, scenario = quiet_run()
+    fig = replay_figure(steps, agents, scenario)
+    assert len(fig.frames) == scenario.steps
+    assert write_replay(steps, agents, scenario, tmp_path / "replay.html").stat().st_size > 1_000_000
+
+
+def test_replay_is_self_contained(replay_html, run):
+    html = replay_html.read_text()
+    assert not re.search(r"<script[^>]*\bsrc\s*=", html)  # plotly.js inlined: no CDN, no file
+    assert len(html) > 1_000_000 and "Plotly.newPlot" in html
+    figure_json = html[html.index("Plotly.newPlot"):]
+    assert figure_json.count('"name":"5"') == 1  # frames are named by step
+
+
+def test_replay_loads_in_chromium_without_errors(chromium_path, replay_html, run, tmp_path):
+    steps, _, scenario = run
+    probed = tmp_path / "probed.html"
+    html = replay_html.read_text()
+    html = html.replace("<head>", "<head>" + ERROR_HOOK, 1).replace("</body>", PROBE + "</body>", 1)
+    probed.write_text(html)
+    proc = _chromium(chromium_path, tmp_path, probed, "--dump-dom")
+    dom = proc.stdout
+    assert 'id="js-errors"' not in dom, re.search(r'<pre id="js-errors">(.*?)</pre>', dom, re.S).group(1)
+    assert "Uncaught" not in proc.stderr
+    assert "plot-container" in dom
+    probe = re.search(r'<pre id="replay-probe">(.*?)</pre>', dom, re.S)
+    assert probe, "the probe never reported: the plot did not finish drawing"
+    report = json.loads(probe.group(1).replace("&gt;", ">").replace("&lt;", "<").replace("&amp;", "&"))
+    assert report["frames"] == scenario.steps
+    assert report["title"].startswith(f"t = {scenario.steps} ")
+    assert report["webgl"], "the 3D scene has no WebGL context"
+
+
+
+def test_replay_renders_a_scene_in_chromium(chromium_path, replay_html, tmp_path):
+    shot = tmp_path / "replay.png"
+    proc = _chromium(chromium_path, tmp_path, replay_html, f"--screenshot={shot}")
+    assert "Uncaught" not in proc.stderr
+    img = mpimg.imread(shot)[..., :3]
+    assert img.shape[:2] == (800, 1000)
+    non_white = (img < 0.95).any(axis=-1).mean()
+    colours = len(np.unique((img * 255).astype(np.uint8).reshape(-1, 3), axis=0))
+    # saturated pixels come from the cones, trails and markers drawn by WebGL, not from the
+    # grey axes and text
+    saturation = img.max(axis=-1) - img.min(axis=-1)
+    # without WebGL the page is one grey block with a message: ~240 colours, 0.7 % saturated
+    assert 0.1 < non_white < 0.9 and colours > 1000, (non_white, colours)
+    assert (saturation > 0.1).mean() > 0.02, (saturation > 0.1).mean()
