@@ -202,6 +202,11 @@ class Control(_Model):
     samples: int = Field(10000, ge=1, description="n_s, GRASP joint samples per iteration")
     iterations: int = Field(100, ge=1, description="n_I, GRASP iterations")
     neighbours: int = Field(6, ge=2, description="GRASP: size of the list of nearest displacements u-, u+ are drawn from (ours)")
+    fallback: Literal["hover", "search"] = Field(
+        "search",
+        description="when no agent believes in the target: `hover` (MODEL.md: hover, keep the last aim, highest "
+        "levels the constraints allow) or `search` (ours: plan moves and levels with the solver around the last aim)",
+    )
 
 
 class Metrics(_Model):

@@ -27,13 +27,14 @@ class RunLog:
         self.meas: dict[str, list] = {k: [] for k in ("t", "agent", "rho", "azimuth", "inclination", "from_target")}
 
     def add_step(self, *, t, target_exists, target_detectable, truth, existence, estimate, ospa, aim,
-                 objective, target_received_w, solve_s, step_s) -> None:
+                 mode, objective, target_received_w, solve_s, step_s) -> None:
         row = {"t": t, "target_exists": bool(target_exists), "target_detectable": bool(target_detectable)}
         row |= _xyz("truth", truth)
         row["existence"] = float(existence)
         row |= _xyz("est", estimate)
         row["ospa"] = float(ospa)
         row |= _xyz("aim", aim)
+        row["mode"] = mode
         row |= {"objective": float(objective), "target_received_w": float(target_received_w),
                 "solve_s": float(solve_s), "step_s": float(step_s)}
         self.steps.append(row)

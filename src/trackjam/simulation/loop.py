@@ -83,9 +83,11 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
         # 4. controls
         positions = np.array([a.position for a in agents])
         ts = time.perf_counter()
-        if x_bar is not None:
+        if x_bar is not None or s.control.fallback == "search":
+            # tracking plans at x_bar; a searching team plans around the aim it last had
+            plan_aim = x_bar if x_bar is not None else np.mean([a.aim for a in agents], axis=0)
             problem = build_problem(
-                positions, x_bar, D, ant, low, high, s.control.at_least, s.control.constraints
+                positions, plan_aim, D, ant, low, high, s.control.at_least, s.control.constraints
             )
             sol = solve(
                 problem,
@@ -95,14 +97,17 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
                 iterations=s.control.iterations,
                 neighbours=s.control.neighbours,
             )
-            moves, levels, objective = sol.move, sol.level, sol.objective
+            moves, levels = sol.move, sol.level
+            objective = sol.objective if x_bar is not None else np.nan
             for a in agents:
-                a.aim = x_bar.copy()
+                a.aim = plan_aim.copy()
+            mode = "track" if x_bar is not None else "search"
         else:
             aims = np.array([a.aim for a in agents])
             moves = np.zeros(len(agents), dtype=np.int64)
             levels = fallback_levels(positions, aims, ant, s.control.constraints)
             objective = np.nan
+            mode = "hover"
         solve_s = time.perf_counter() - ts
 
         # 5. move and transmit
@@ -166,6 +171,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
             estimate=est,
             ospa=err,
             aim=x_bar,
+            mode=mode,
             objective=objective,
             target_received_w=float(to_target.sum()),
             solve_s=solve_s,

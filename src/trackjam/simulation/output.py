@@ -44,8 +44,11 @@ def check_out_dir(out: Path, scenario: Scenario) -> None:
                     f"--out {out}: folder is not empty and holds {what}; choose a new or empty folder"
                 )
     parent = out if out.is_dir() else _existing_parent(out)
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ConfigError(f"--out {out}: {parent} is not writable")
+    try:  # a real probe: os.access says yes to root even on read-only file systems
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as err:
+        raise ConfigError(f"--out {out}: {parent} is not writable ({err.strerror})") from None
 
 
 def _existing_parent(p: Path) -> Path:
