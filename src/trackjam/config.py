@@ -149,7 +149,9 @@ class Antenna(_Model):
     @classmethod
     def _levels(cls, v: list[Any]) -> list[Any]:
         parsed = [_parse_level(x) for x in v]
-        if all(p is None for p in parsed):
+        if parsed[0] is not None or any(p is None for p in parsed[1:]):
+            raise ValueError("the first level, and only it, must be off (all-off keeps Eq. (13) feasible)")
+        if len(parsed) < 2:
             raise ValueError("at least one power level must be on")
         out = ["off" if p is None else p for p in parsed]
         watts = [0.0 if p is None else 10 ** (p / 10) for p in parsed]
