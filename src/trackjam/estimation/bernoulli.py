@@ -100,8 +100,9 @@ def posterior_existence(e_pred: float, log_one_minus_q: float) -> float:
 def bernoulli_update(e_pred, X, log_w, Z, u, aim, level_w, ant: AntennaModel, noise_std, log_lambda_c):
     """The update of Section V-A on a weighted particle set (``log_w`` normalised).
 
-    Returns ``(e_t, log_w_t, log(1 - q_t))``: the posterior existence, the posterior
-    log-weights (normalised) and the log of ``1 - q_t = sum_i w_i L_i``.
+    Returns ``(e_t, log_w_t, log(1 - q_t), log_L)``: the posterior existence, the posterior
+    log-weights (normalised), the log of ``1 - q_t = sum_i w_i L_i`` and the per-particle
+    ``log L_i``.
     """
     p_d_scale = max(float(level_w), 0.0) / ant.l_max * ant.p_d_max
     axis = axis_of(np.asarray(u, dtype=float), np.asarray(aim, dtype=float))
@@ -113,7 +114,7 @@ def bernoulli_update(e_pred, X, log_w, Z, u, aim, level_w, ant: AntennaModel, no
     log_A = float(kernel_logsumexp(log_joint))
     e = posterior_existence(e_pred, log_A)
     log_post = log_w if log_A == -np.inf else log_joint - log_A
-    return e, log_post, log_A
+    return e, log_post, log_A, log_L
 
 
 def measurement_covariances(Z: np.ndarray, u: np.ndarray, noise_std, inflate: float, floor: float):
@@ -180,12 +181,13 @@ class BernoulliFilter:
 
         self.e = float(np.clip(existence, 0.0, 1.0))
         self.X = self._uniform_states(self.n)
+        self.log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t
         self._e_pred: float | None = None  # set by predict(), consumed by update()
         self._w_surv = 1.0
         self._w_birth = 0.0
         self._birth: tuple[np.ndarray, np.ndarray] | None = None  # measurement birth drawn at predict
         self._prev_scan: tuple[np.ndarray, np.ndarray] | None = None  # (mu, cov) of the last scan
-        mean, cov = weighted_moments(self.X, np.full(self.n, 1.0 / self.n))
+        mean, cov = weighted_moments(self.X, np.exp(self.log_w))
         self._last = Estimate(self.e, mean, cov)
 
     # -- birth density b_t ------------------------------------------------------------------
@@ -277,7 +279,7 @@ class BernoulliFilter:
         X = self.X
         self._e_pred = e_pred
 
-        m_s, C_s = weighted_moments(X, np.full(self.n, 1.0 / self.n))
+        m_s, C_s = weighted_moments(X, np.exp(self.log_w))
         if self.birth == "measurement":
             self._birth = self._measurement_birth()
             m_b, C_b = weighted_moments(self._birth[0], np.exp(self._birth[1]))
@@ -304,23 +306,50 @@ class BernoulliFilter:
         X = np.vstack([self.X, XB])
         with np.errstate(divide="ignore"):
             log_w = np.concatenate(
-                [np.full(self.n, math.log(self._w_surv) - math.log(self.n)) if self._w_surv > 0 else np.full(self.n, -np.inf),
+                [(math.log(self._w_surv) if self._w_surv > 0 else -np.inf) + self.log_w,
                  (math.log(self._w_birth) if self._w_birth > 0 else -np.inf) + log_wB]
             )
-        e, log_post, _ = bernoulli_update(
+        e, log_post, _, log_L = bernoulli_update(
             e_pred, X, log_w, Z, u, aim, level_w, self.ant, self.noise_std, self.log_lambda_c
         )
         w = np.exp(log_post)
         w /= w.sum()
         mean, cov = weighted_moments(X, w)
-        idx = kernel_systematic_indices(w, self.n, self.rng.uniform())
-        self.X = X[idx]
+        self.X, self.log_w = self._resample(X, w, log_L > 0.0)
         self.e = e
         self._e_pred = None
         self._birth = None
         self._prev_scan = measurement_covariances(Z, u, self.noise_std, 1.0, PROPOSAL_FLOOR) if len(Z) else None
         self._last = Estimate(e, mean, cov)
         return self._last
+
+    def _resample(self, X: np.ndarray, w: np.ndarray, supported: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Systematic resampling of the ``n + n_b`` weighted particles back to ``n``.
+
+        ``supported`` marks the particles the scan made more likely (L_i > 1: near a
+        measurement). While a target is new, they carry well under 1% of the mass next to the
+        diffuse "somewhere else in the area" part, so plain resampling keeps a few dozen of
+        them, too few to find the velocity, unobserved at a first detection. When their share
+        would give them fewer than ``min(n_b, n / 5)`` slots, the two parts are resampled
+        separately (ours): the supported part gets that many slots, the rest the others, each
+        slot weighted by its part's mass over its slot count. The weighted set represents the
+        same density; once the target is tracked the supported part dominates and this is
+        plain systematic resampling.
+        """
+        n = self.n
+        reserve = min(self.n_b, n // 5)
+        W_a = float(w[supported].sum())
+        W_r = 1.0 - W_a
+        if reserve == 0 or W_a <= 0.0 or W_r <= 0.0 or W_a * n >= reserve:
+            idx = kernel_systematic_indices(w, n, self.rng.uniform())
+            return X[idx], np.full(n, -math.log(n))
+        ia = np.flatnonzero(supported)
+        ir = np.flatnonzero(~supported)
+        n_r = n - reserve
+        idx_a = ia[kernel_systematic_indices(w[ia] / W_a, reserve, self.rng.uniform())]
+        idx_r = ir[kernel_systematic_indices(w[ir] / W_r, n_r, self.rng.uniform())]
+        log_w = np.concatenate([np.full(reserve, math.log(W_a / reserve)), np.full(n_r, math.log(W_r / n_r))])
+        return X[np.concatenate([idx_a, idx_r])], log_w
 
     def estimate(self) -> Estimate:
         """The latest estimate: predicted after ``predict()``, posterior after ``update()``."""
@@ -336,11 +365,12 @@ class BernoulliFilter:
             lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
             root = V * np.sqrt(np.clip(lam, 0.0, None))
             self.X = mean + self.rng.standard_normal((self.n, 6)) @ root.T
+            self.log_w = np.full(self.n, -math.log(self.n))
             self._last = Estimate(self.e, mean.copy(), cov.copy())
         else:
             self._last = Estimate(self.e, self._last.mean, self._last.cov)
 
     @property
     def particles(self) -> np.ndarray:
-        """The (equally weighted) particles of s_t after the last update, (n, 6)."""
+        """The particles of s_t after the last update, (n, 6); weights ``exp(log_w)``."""
         return self.X
