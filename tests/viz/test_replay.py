@@ -133,9 +133,10 @@ def test_jammed_agents_and_jamming_links_follow_the_logs(run):
     for k, frame in enumerate(fig.frames):
         by_name = {tr.name: tr for tr in frame.data}
         ring = by_name["jammed agent (red ring)"]
-        assert sorted(np.asarray(ring.x, dtype=float)) == sorted(x[k, jammed[k]])
+        ring_x = np.asarray(ring.x, dtype=float)
+        assert sorted(ring_x[np.isfinite(ring_x)]) == sorted(x[k, jammed[k]])
         links = np.asarray(by_name["jams (sender -> receiver)"].x, dtype=float)
-        assert np.isnan(links).sum() == (R[k] >= delta).sum()
+        assert np.isfinite(links).sum() == 2 * (R[k] >= delta).sum()  # one segment per pair
 
 
 def test_quiet_run_replays(tmp_path):

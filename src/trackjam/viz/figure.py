@@ -139,13 +139,12 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
     ax_ospa.set_xlabel("time step t  (dT = 1 s)")
+    handles, _ = ax_level.get_legend_handles_labels()
     if len(occ):
-        ax_level.legend(
-            handles=[Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded")],
-            loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False,
-        )
+        handles.append(Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded"))
+    ax_level.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
     fig.suptitle(f"trackjam run: {scenario.name}  ({N} agents, {T} steps, solver {scenario.control.solver})")
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
     return path
 
@@ -174,6 +173,7 @@ def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
+    ax.set_box_aspect(np.subtract(hi, lo), zoom=1.2)
     ax.set_title("(a) trajectories  (o start, ^ end, * target appears)")
     ax.legend(loc="upper left", fontsize=8)
 
@@ -190,7 +190,6 @@ def _panel_levels(ax, agents, scenario, t, T, N) -> None:
     ax.set_ylim(-0.5, len(labels) - 0.5)
     ax.set_ylabel("transmit level")
     ax.set_title("(b) transmit power level per agent", loc="left", fontsize=10)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 0.75), fontsize=8, frameon=False)
 
 
 def _panel_jamming(ax, agents, scenario, T, N) -> None:
@@ -241,7 +240,7 @@ def _panel_powers(ax, steps, agents, scenario, t, T, N) -> None:
                    edgecolor=agent_colour(j), lw=1.4, s=36, label=f"interference at agent {j + 1}")
     ax.axhline(delta_db, color="k", ls="--", lw=1, label=f"delta = {delta_db:g} dBW")
     ax.set_ylim(floor - 2, top)
-    ticks = [v for v in ax.get_yticks() if floor < v <= top]
+    ticks = [v for v in ax.get_yticks() if floor + 0.1 * (top - floor) < v <= top]
     ax.set_yticks([floor, *ticks], ["0 W", *[f"{v:g}" for v in ticks]])
     ax.set_ylabel("received power [dBW]")
     ax.set_title("(d) received power: target (line) and agents' interference (circles)", loc="left", fontsize=10)

@@ -110,12 +110,13 @@ def _frame_data(k, steps, u, u_path, point, idx, power, jammed, R, ant, labels, 
     for j in range(N):
         data.append(_cone_trace(j, u[k, j], point[k, j], power[k, j] > 0, ant))
     hit = np.flatnonzero(jammed[k])
-    data.append(_point(u[k, hit] if len(hit) else np.empty((0, 3)), "jammed agent (red ring)",
+    # a trace with no point leaves the legend: an empty step gets one NaN point instead
+    data.append(_point(u[k, hit] if len(hit) else np.full((1, 3), np.nan), "jammed agent (red ring)",
                        JAM_COLOUR, "circle-open", 16))
     seg = []
     for i, j in zip(*np.nonzero(R[k] >= delta)):
         seg += [u[k, j], u[k, i], [np.nan] * 3]
-    seg = np.asarray(seg, dtype=float).reshape(-1, 3)
+    seg = np.asarray(seg or [[np.nan] * 3], dtype=float).reshape(-1, 3)
     data.append(go.Scatter3d(x=seg[:, 0], y=seg[:, 1], z=seg[:, 2], mode="lines",
                              name="jams (sender -> receiver)",
                              line=dict(color=JAM_COLOUR, width=3, dash="dash"), hoverinfo="skip"))
@@ -132,8 +133,11 @@ def _title(steps: Columns, k: int) -> str:
     exists = bool(steps["target_exists"][k])
     seen = bool(steps["target_detectable"][k])
     state = "present" if seen else ("occluded" if exists else "absent")
-    return (f"t = {int(steps['t'][k])}   |   fused existence {e:.2f}   |   OSPA {ospa:.2f} m"
-            f"   |   target {state}   |   received at target {_db(float(steps['target_received_w'][k]))}")
+    title = (f"t = {int(steps['t'][k])}   |   fused existence {e:.2f}   |   OSPA {ospa:.2f} m"
+             f"   |   target {state}   |   received at target {_db(float(steps['target_received_w'][k]))}")
+    if "mode" in steps:  # the loop's planning mode, when it logs one
+        title += f"   |   {steps['mode'][k]}"
+    return title
 
 
 def replay_figure(steps: Columns, agents: Columns, scenario: Scenario) -> go.Figure:
