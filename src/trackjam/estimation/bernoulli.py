@@ -203,7 +203,7 @@ class BernoulliFilter:
         var = np.concatenate([(self.high - self.low) ** 2 / 12, np.full(3, self.v_b**2 / 3)])
         return mean, np.diag(var)
 
-    def _uniform_birth(self, Z: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def draw_uniform_birth(self, Z: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth particles of the uniform b(x) and their normalised log-weights b / proposal.
 
         Importance proposal (ours), a deterministic mixture with fixed counts:
@@ -302,7 +302,7 @@ class BernoulliFilter:
         if self._birth is not None:
             XB, log_wB = self._birth
         else:
-            XB, log_wB = self._uniform_birth(Z, u)
+            XB, log_wB = self.draw_uniform_birth(Z, u)
         X = np.vstack([self.X, XB])
         with np.errstate(divide="ignore"):
             log_w = np.concatenate(

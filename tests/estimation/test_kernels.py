@@ -1,0 +1,126 @@
+"""The compiled kernels of the Bernoulli filter agree with plain numpy on small cases."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import multivariate_normal
+
+from trackjam.config import load_scenario
+from trackjam.estimation.kernels import (
+    kernel_cv_predict,
+    kernel_log_gaussian_mixture,
+    kernel_logsumexp,
+    kernel_systematic_indices,
+    kernel_update_factors,
+    kernel_weighted_moments,
+)
+from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
+from trackjam.radio.measurement import clutter_density, h, wrap_angle
+from trackjam.world.target import cv_matrices
+
+S = load_scenario("paper-fig3")
+ANT = AntennaModel.from_scenario(S)
+SIGMA = np.asarray(S.sensor.noise_std)
+LOG_LC = math.log(S.sensor.clutter_rate * clutter_density(ANT.max_range))
+
+
+def reference_update_factors(X, Z, u, aim, level_w):
+    """L_i = (1 - p_D) + p_D sum_y g(y | x_i) / (lambda_c p_c), straight from the definitions."""
+    p_d = detection_probability(X[:, :3], u, aim, level_w, ANT)
+    ratio = np.zeros(len(X))
+    for y in Z:
+        r = y - h(X, u)
+        r[:, 1:] = wrap_angle(r[:, 1:])
+        g = np.exp(-0.5 * np.sum((r / SIGMA) ** 2, axis=1)) / ((2 * np.pi) ** 1.5 * np.prod(SIGMA))
+        ratio += g / math.exp(LOG_LC)
+    return p_d, (1 - p_d) + p_d * ratio
+
+
+def _case(rng, n=40, m=5):
+    u = np.array([10.0, 20.0, 30.0])
+    aim = np.array([14.0, 23.0, 33.0])
+    X = np.hstack([aim + rng.normal(0, 3, (n, 3)), rng.normal(0, 1, (n, 3))])
+    Z = h(aim + rng.normal(0, 1, (m, 3)), u)
+    Z[-1] = [3.0, 3.1, 0.2]  # azimuth next to the wrap at pi
+    return X, Z, u, aim
+
+
+@pytest.mark.parametrize("level_w", [0.0, 1e-5, 0.1995, ANT.l_max])
+@pytest.mark.parametrize("m", [0, 1, 5])
+def test_update_factors_match_numpy(level_w, m):
+    rng = np.random.default_rng(3)
+    X, Z, u, aim = _case(rng, m=max(m, 1))
+    Z = Z[:m]
+    p_d, log_L = kernel_update_factors(
+        X, Z, u, axis_of(u, aim), level_w / ANT.l_max * ANT.p_d_max, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e,
+        SIGMA, LOG_LC,
+    )
+    p_ref, L_ref = reference_update_factors(X, Z, u, aim, level_w)
+    np.testing.assert_allclose(p_d, p_ref, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.exp(log_L), L_ref, rtol=1e-10)
+
+
+def test_azimuth_residual_is_wrapped():
+    """A measurement at azimuth -pi + 0.01 and a particle at pi - 0.01 are 0.02 rad apart."""
+    u = np.zeros(3)
+    x = np.array([[-5.0 * math.cos(0.01), 5.0 * math.sin(0.01), 0.0, 0, 0, 0]])
+    z = h(x, u)
+    z[0, 1] = -math.pi + 0.01
+    _, log_L = kernel_update_factors(x, z, u, np.array([-1.0, 0, 0]), 0.95, 40.0, ANT.tan_half, 6.0, 2.0, SIGMA, LOG_LC)
+    p_ref, L_ref = reference_update_factors(x, z, u, np.array([-1.0, 0, 0]), ANT.l_max)
+    assert L_ref[0] > 100  # the residual is small, the measurement strongly supports x
+    np.testing.assert_allclose(np.exp(log_L), L_ref, rtol=1e-10)
+
+
+def test_systematic_indices_match_numpy():
+    rng = np.random.default_rng(0)
+    w = rng.random(50)
+    w /= w.sum()
+    u0 = 0.37
+    ref = np.searchsorted(np.cumsum(w), (np.arange(200) + u0) / 200)
+    np.testing.assert_array_equal(kernel_systematic_indices(w, 200, u0), np.minimum(ref, 49))
+
+
+def test_systematic_resampling_keeps_expected_counts():
+    """Each particle is copied floor(n w_i) or ceil(n w_i) times."""
+    rng = np.random.default_rng(1)
+    w = rng.random(30)
+    w /= w.sum()
+    counts = np.bincount(kernel_systematic_indices(w, 1000, rng.uniform()), minlength=30)
+    assert np.all(np.abs(counts - 1000 * w) < 1.0 + 1e-9)
+
+
+def test_weighted_moments_and_logsumexp_match_numpy():
+    rng = np.random.default_rng(2)
+    X = rng.normal(50, 10, (300, 6))
+    w = rng.random(300)
+    w /= w.sum()
+    mean, cov = kernel_weighted_moments(X, w)
+    np.testing.assert_allclose(mean, w @ X, rtol=1e-12)
+    np.testing.assert_allclose(cov, np.cov(X.T, aweights=w, bias=True), rtol=1e-10, atol=1e-10)
+    a = rng.normal(0, 300, 100)
+    assert kernel_logsumexp(a) == pytest.approx(np.logaddexp.reduce(a), rel=1e-12)
+    assert kernel_logsumexp(np.full(3, -np.inf)) == -np.inf
+
+
+def test_gaussian_mixture_matches_scipy():
+    rng = np.random.default_rng(4)
+    mu = rng.normal(0, 2, (3, 3))
+    A = rng.normal(0, 1, (3, 3, 3))
+    covs = A @ A.transpose(0, 2, 1) + np.eye(3)
+    L = np.linalg.cholesky(covs)
+    P = rng.normal(0, 3, (20, 3))
+    got = kernel_log_gaussian_mixture(P[:, None, :] - mu[None], np.linalg.inv(L), np.log(np.diagonal(L, axis1=1, axis2=2)).sum(1))
+    ref = np.log(np.mean([multivariate_normal(mu[k], covs[k]).pdf(P) for k in range(3)], axis=0))
+    np.testing.assert_allclose(got, ref, rtol=1e-10)
+
+
+def test_cv_predict_is_eq1():
+    rng = np.random.default_rng(5)
+    X = rng.normal(0, 5, (10, 6))
+    xi = rng.normal(0, 1, (10, 3))
+    Phi, Gamma = cv_matrices(1.0)
+    ref = X @ Phi.T + (0.7 * xi) @ Gamma.T
+    kernel_cv_predict(X, xi, 1.0, 0.7)
+    np.testing.assert_allclose(X, ref, rtol=1e-12)
