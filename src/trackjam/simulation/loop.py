@@ -123,13 +123,13 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
         level_w = ant.levels_w[np.asarray(levels, dtype=np.int64)]
         R = interference_matrix(positions, points, level_w, ant)
         interference = R.sum(axis=1)
-        # an occluded target is shielded from the radio: no detection, no jamming (ours)
-        if truth.detectable:
-            p_d = detection_probability(x_true, positions, points, level_w, ant)
+        # occlusion hides the target from detection (MODEL.md); the jamming power still reaches it
+        p_d = np.zeros(len(agents))
+        to_target = np.zeros(len(agents))
+        if truth.exists:
             to_target = received_power(x_true, positions, points, level_w, ant)
-        else:
-            p_d = np.zeros(len(agents))
-            to_target = np.zeros(len(agents))
+            if truth.detectable:
+                p_d = detection_probability(x_true, positions, points, level_w, ant)
         truth.apply_jamming(t, float(to_target.sum()))
 
         # 6. scans and filter updates
