@@ -131,16 +131,11 @@ def measurement_covariances(Z: np.ndarray, u: np.ndarray, noise_std, inflate: fl
     return h_inverse(Z, u), cov
 
 
-def log_mixture_of_residuals(d: np.ndarray, chol: np.ndarray) -> np.ndarray:
-    """log of (1/k) sum_j N(d[:, j]; 0, L_j L_j^T) for residuals ``d`` (n, k, 3)."""
-    Linv = np.linalg.inv(chol)
-    log_det = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
-    return kernel_log_gaussian_mixture(np.ascontiguousarray(d), Linv, log_det)
-
-
 def log_gaussian_mixture(P: np.ndarray, mu: np.ndarray, chol: np.ndarray) -> np.ndarray:
     """log of (1/k) sum_j N(p; mu_j, L_j L_j^T) at each row of ``P`` (n, 3)."""
-    return log_mixture_of_residuals(P[:, None, :] - mu[None, :, :], chol)
+    log_det = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
+    d = np.ascontiguousarray(P[:, None, :] - mu[None, :, :])
+    return kernel_log_gaussian_mixture(d, np.linalg.inv(chol), log_det)
 
 
 class BernoulliFilter:
@@ -206,12 +201,10 @@ class BernoulliFilter:
     def draw_uniform_birth(self, Z: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth particles of the uniform b(x) and their normalised log-weights b / proposal.
 
-        Importance proposal (ours), a deterministic mixture with fixed counts:
-        ``n_u`` particles from b itself; of the ``n_p`` drawn around the current scan's
-        measurements (position density G), half take their velocity from b and half from
-        ``N((p - mu'_k) / dT, Sigma'_k / dT^2 + accel_var I)`` around a previous-scan
-        measurement ``mu'_k`` (density V(v | p)). The proposal density is
-        ``(n_u/B) b + (n_p1/B) G(p) U(v) + (n_p2/B) G(p) V(v | p)``.
+        Importance proposal (ours), a deterministic mixture with fixed counts: ``n_u``
+        particles from b itself and ``n_p`` whose position is drawn from G, the mixture of the
+        current scan's Cartesian Gaussians (velocity from b). The proposal density is
+        ``(n_u / B) b(x) + (n_p / B) G(p) U(v)`` and the weight ``b(x) / proposal(x)``.
         """
         m = len(Z)
         B = self.n_b
@@ -225,32 +218,17 @@ class BernoulliFilter:
         comp = self.rng.integers(m, size=n_p)
         xi = self.rng.standard_normal((n_p, 3))
         XB[n_u:, :3] = mu[comp] + (chol[comp] @ xi[:, :, None])[:, :, 0]
-        n_v = n_p // 2 if (self._prev_scan is not None and self.v_b > 0) else 0  # velocity from scan pairs
-        if n_v:
-            mu_p, cov_p = self._prev_scan
-            cov_v = (PROPOSAL_INFLATE**2 * cov_p + self.accel_var * DT**4 / 4 * np.eye(3)) / DT**2 + self.accel_var * np.eye(3)
-            chol_v = np.linalg.cholesky(cov_v)
-            k = self.rng.integers(len(mu_p), size=n_v)
-            P = XB[B - n_v :, :3]
-            eps = self.rng.standard_normal((n_v, 3))
-            XB[B - n_v :, 3:] = (P - mu_p[k]) / DT + (chol_v[k] @ eps[:, :, None])[:, :, 0]
-        P, V = XB[:, :3], XB[:, 3:]
-        inside = np.all((P >= self.low) & (P <= self.high), axis=1) & np.all(np.abs(V) <= self.v_b, axis=1)
-        log_U_v = -3.0 * math.log(2.0 * self.v_b) if self.v_b > 0 else 0.0
-        log_b = np.where(inside, -self.log_volume + log_U_v, -np.inf)
-        log_G = log_gaussian_mixture(P, mu, chol)
-        with np.errstate(divide="ignore"):
-            parts = [
-                log_b + math.log(n_u / B) if n_u else np.full(B, -np.inf),
-                math.log((n_p - n_v) / B) + log_G + log_U_v if n_p > n_v else np.full(B, -np.inf),
-            ]
-            if n_v:
-                log_V = log_mixture_of_residuals(V[:, None, :] - (P[:, None, :] - mu_p[None, :, :]) / DT, chol_v)
-                parts.append(math.log(n_v / B) + log_G + log_V)
-        log_q = np.logaddexp.reduce(parts)
+        P = XB[:, :3]
+        inside = np.all((P >= self.low) & (P <= self.high), axis=1)
+        # the velocity factor U(v) is common to b and to every proposal component: it cancels
+        log_b = np.where(inside, -self.log_volume, -np.inf)
+        log_q = np.logaddexp(
+            log_b + math.log(n_u / B) if n_u else np.full(B, -np.inf),
+            math.log(n_p / B) + log_gaussian_mixture(P, mu, chol),
+        )
         log_iw = np.where(inside, log_b - log_q, -np.inf)
-        if not np.any(np.isfinite(log_iw)):
-            return XB, np.full(B, -math.log(B))
+        if not np.any(inside):
+            return self._uniform_states(B), np.full(B, -math.log(B))
         return XB, log_iw - kernel_logsumexp(log_iw)
 
     def _measurement_birth(self) -> tuple[np.ndarray, np.ndarray]:
@@ -319,7 +297,8 @@ class BernoulliFilter:
         self.e = e
         self._e_pred = None
         self._birth = None
-        self._prev_scan = measurement_covariances(Z, u, self.noise_std, 1.0, PROPOSAL_FLOOR) if len(Z) else None
+        if self.birth == "measurement":
+            self._prev_scan = measurement_covariances(Z, u, self.noise_std, 1.0, PROPOSAL_FLOOR) if len(Z) else None
         self._last = Estimate(e, mean, cov)
         return self._last
 
@@ -339,7 +318,7 @@ class BernoulliFilter:
         n = self.n
         reserve = min(self.n_b, n // 5)
         W_a = float(w[supported].sum())
-        W_r = 1.0 - W_a
+        W_r = float(w[~supported].sum())
         if reserve == 0 or W_a <= 0.0 or W_r <= 0.0 or W_a * n >= reserve:
             idx = kernel_systematic_indices(w, n, self.rng.uniform())
             return X[idx], np.full(n, -math.log(n))
@@ -356,8 +335,9 @@ class BernoulliFilter:
         return self._last
 
     def reset_to(self, existence: float, mean: np.ndarray | None = None, cov: np.ndarray | None = None) -> None:
-        """Fusion feedback (end of Section V-A): set the existence; when a fused Gaussian is
-        given, redraw the particles from N(mean, cov)."""
+        """Fusion feedback (end of Section V-A), called after ``update()``: set the existence;
+        when a fused Gaussian is given, redraw the particles from N(mean, cov) (equal weights;
+        a singular covariance is allowed)."""
         self.e = float(np.clip(existence, 0.0, 1.0))
         if mean is not None and cov is not None:
             mean = np.asarray(mean, dtype=float)
