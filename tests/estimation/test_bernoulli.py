@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from trackjam.config import load_scenario
 from trackjam.estimation.bernoulli import BernoulliFilter, bernoulli_update, posterior_existence
 from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
-from trackjam.radio.measurement import clutter_density, h, h_inverse, sample_scan, wrap_angle
+from trackjam.radio.measurement import clutter_density, h, sample_scan, wrap_angle
 from trackjam.world.target import cv_step
 
 S = load_scenario("paper-fig3")
@@ -278,7 +278,10 @@ def _rim_point(u, aim):
     return u + ANT.height * axis + ANT.height * ANT.tan_half * side
 
 
-SMALL = load_scenario("paper-fig3", filter__particles=200, filter__birth_particles=50)
+SMALL = {
+    birth: load_scenario("paper-fig3", filter__particles=200, filter__birth_particles=50, filter__birth=birth)
+    for birth in ("uniform", "measurement")
+}
 
 
 @settings(max_examples=25, deadline=None)
@@ -288,10 +291,11 @@ SMALL = load_scenario("paper-fig3", filter__particles=200, filter__birth_particl
     seed=st.integers(0, 2**16),
     existence=st.sampled_from([0.0, 0.3, 1.0]),
     collapsed=st.booleans(),
+    birth=st.sampled_from(["uniform", "measurement"]),
 )
-def test_any_scan_any_level_gives_finite_estimates(kind, level, seed, existence, collapsed):
+def test_any_scan_any_level_gives_finite_estimates(kind, level, seed, existence, collapsed, birth):
     rng = np.random.default_rng(seed)
-    f = BernoulliFilter(SMALL, rng)
+    f = BernoulliFilter(SMALL[birth], rng)
     u = np.array([30.0, 30.0, 30.0])
     aim = np.array([40.0, 35.0, 30.0])
     if collapsed:  # every particle at one point: a singular covariance
@@ -310,7 +314,7 @@ def test_any_scan_any_level_gives_finite_estimates(kind, level, seed, existence,
         Z = h(aim, u)[None, :]
     else:
         Z = np.repeat(h(aim, u)[None, :], 5, axis=0)
-    for _ in range(2):
+    for _ in range(3):
         for est in (f.predict(), f.update(Z, u, aim, level)):
             assert 0.0 <= est.existence <= 1.0
             assert np.all(np.isfinite(est.mean)) and np.all(np.isfinite(est.cov))
