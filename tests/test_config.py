@@ -25,10 +25,18 @@ def test_paper_fig3_preset_holds_the_papers_settings():
     assert s.control.at_least == 2 and s.control.constraints
 
 
-def test_defaults_equal_the_preset():
+def test_defaults_are_model_md_read_literally():
     ex = {"name", "target", "sensor"}  # the preset writes pi/50 as 0.0628319, as the issue does
-    assert Scenario().model_dump(exclude=ex) == load_scenario("paper-fig3").model_dump(exclude=ex)
-    assert Scenario().sensor.noise_std == pytest.approx(load_scenario("paper-fig3").sensor.noise_std, rel=1e-6)
+    literal = load_scenario("paper-fig3-literal")
+    assert Scenario().model_dump(exclude=ex) == literal.model_dump(exclude=ex)
+    assert Scenario().sensor.noise_std == pytest.approx(literal.sensor.noise_std, rel=1e-6)
+
+
+def test_paper_fig3_differs_from_the_literal_reading_only_by_our_three_choices():
+    a = load_scenario("paper-fig3").model_dump(exclude={"name"})
+    b = load_scenario("paper-fig3-literal").model_dump(exclude={"name"})
+    diff = {(sec, k) for sec in a if isinstance(a[sec], dict) for k in a[sec] if a[sec][k] != b[sec][k]}
+    assert diff == {("filter", "cue"), ("fusion", "existence"), ("control", "fallback")}
 
 
 def test_resolved_yaml_round_trips(tmp_path):

@@ -62,7 +62,7 @@ def presets() -> None:
     for name in preset_names():
         s = load_scenario(name)
         typer.echo(
-            f"{name:<16} {s.n_agents} agents, {s.steps} steps, solver {s.control.solver}, "
+            f"{name:<20} {s.n_agents} agents, {s.steps} steps, solver {s.control.solver}, "
             f"theta_a {s.antenna.opening_angle_deg:g} deg"
         )
 

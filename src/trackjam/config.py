@@ -183,6 +183,14 @@ class Sensor(_Model):
         return v
 
 
+class Cue(_Model):
+    """A prior the team starts from (ours): where the antennas first point, e.g. from a ground radar."""
+
+    existence: Prob = Field(0.9, description="e_0, initial existence probability of every filter")
+    position_std: PosFloat = Field(2.0, description="standard deviation of the initial position around agents.initial_aim [m]")
+    velocity_std: PosFloat = Field(2.0, description="standard deviation of the initial velocity around 0 [m/s]")
+
+
 class Filter(_Model):
     birth_prob: Prob = Field(0.02, description="p_b used by the filter")
     survival_prob: Prob = Field(0.98, description="p_s used by the filter")
@@ -191,10 +199,16 @@ class Filter(_Model):
     birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t")
     birth_speed: NonNegFloat = Field(3.0, description="v_b: birth velocity uniform in +-v_b per axis [m/s]")
     accel_var: NonNegFloat | None = Field(None, description="filter's Sigma_v scale; null: the target's")
+    cue: Cue | None = Field(None, description="initial prior around agents.initial_aim (ours); null: e_0 = 0, nothing known")
 
 
 class Fusion(_Model):
-    feedback: bool = Field(True, description="agents redraw particles from the fused estimate")
+    feedback: bool = Field(True, description="agents take the fused existence and redraw particles from the fused estimate")
+    existence: Literal["mean", "evidence"] = Field(
+        "mean",
+        description="fused existence: `mean` of the agents' e (the paper) or `evidence` (ours: product of the "
+        "agents' likelihood ratios on the common prior, as a centralised filter would)",
+    )
 
 
 class Control(_Model):
@@ -205,7 +219,7 @@ class Control(_Model):
     iterations: int = Field(100, ge=1, description="n_I, GRASP iterations")
     neighbours: int = Field(6, ge=2, description="GRASP: size of the list of nearest displacements u-, u+ are drawn from (ours)")
     fallback: Literal["hover", "search"] = Field(
-        "search",
+        "hover",
         description="when no agent believes in the target: `hover` (MODEL.md: hover, keep the last aim, highest "
         "levels the constraints allow) or `search` (ours: plan moves and levels with the solver around the last aim)",
     )

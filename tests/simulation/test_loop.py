@@ -89,10 +89,10 @@ def test_recorded_physics_agrees_with_recomputation(fig3):
 
 
 def test_planned_interference_at_the_aim_is_below_delta(fig3):
+    """grasp and exact respect Eq. (13) at x_bar; greedy is Eq. (11): each agent's own best p_D."""
     s, r = fig3
-    if s.control.solver == "greedy":
-        pytest.skip("greedy (Eq. 11) ignores the constraints by definition")
     ant = AntennaModel.from_scenario(s)
+    D = scenario_displacements(s)
     n = s.n_agents
     for i in range(s.steps):
         aim = xyz(r.steps, "aim", i)
@@ -100,17 +100,38 @@ def test_planned_interference_at_the_aim_is_below_delta(fig3):
             continue
         rows = slice(i * n, (i + 1) * n)
         u = np.stack([r.agents[k][rows] for k in "xyz"], 1)
-        R = interference_matrix(u, np.repeat(aim[None], n, 0), r.agents["power_w"][rows], ant)
-        assert np.all(R.sum(axis=1) < ant.delta_w)
+        if s.control.solver == "greedy":
+            prev = np.stack([r.agents[f"prev_{k}"][rows] for k in "xyz"], 1)
+            for j in range(n):
+                cand = prev[j] + D
+                ok = np.all((cand >= 0) & (cand <= 100), axis=1)
+                best = detection_probability(aim, cand[ok], aim, ant.l_max, ant).max()
+                got = detection_probability(aim, u[j], aim, r.agents["power_w"][rows][j], ant)
+                assert got == pytest.approx(best)
+        else:
+            R = interference_matrix(u, np.repeat(aim[None], n, 0), r.agents["power_w"][rows], ant)
+            assert np.all(R.sum(axis=1) < ant.delta_w)
 
 
-def test_the_team_tracks_and_loses_the_target_in_the_occlusion(fig3):
+def test_the_team_tracks_until_the_occlusion_and_knows_it_then(fig3):
     s, r = fig3
-    detectable = r.steps["target_detectable"]
-    e = r.steps["existence"]
-    assert np.mean(e[detectable] > 0.5) > 0.6
-    occluded = (r.steps["t"] >= 14) & (r.steps["t"] <= 17)
-    assert np.any(e[occluded] < 0.5)
+    e, t = r.steps["existence"], r.steps["t"]
+    assert np.all(e[(t >= 2) & (t < 14)] > 0.5)  # cued at t = 0, confirmed on every step before
+    assert np.mean(r.steps["ospa"][(t >= 2) & (t < 14)]) < 3.0  # metres, with c = 10
+
+
+@pytest.mark.parametrize("solver", ["exact", "greedy"])
+def test_over_seeds_existence_follows_detectability(solver):
+    """Over seeds: tracked on most detectable steps, and below 0.5 during the occlusion in most
+    runs (re-acquiring after it depends on how far the target wandered while hidden)."""
+    tracked, dropped = [], []
+    for seed in range(1, 7):
+        r = simulate(load_scenario("paper-fig3", [f"control.solver={solver}"], seed=seed))
+        e, t, det = r.steps["existence"], r.steps["t"], r.steps["target_detectable"]
+        tracked.append(np.mean(e[det] > 0.5))
+        dropped.append(np.any(e[(t >= 14) & (t <= 17)] < 0.5))
+    assert np.mean(tracked) > 0.6
+    assert np.mean(dropped) > 0.5
 
 
 def test_same_seed_same_logs_different_seed_different_logs():

@@ -87,11 +87,37 @@ def covariance_intersection(means, covs) -> tuple[np.ndarray, np.ndarray, np.nda
     return mean, cov, omega
 
 
-def fuse(estimates: list[Estimate]) -> FusedEstimate:
-    """The team's estimate: mean existence, and the CI of the agents with e^j > 0.5."""
+def _odds(e: np.ndarray) -> np.ndarray:
+    e = np.clip(np.asarray(e, dtype=float), 1e-12, 1 - 1e-12)
+    return e / (1 - e)
+
+
+def fused_existence(posterior, predicted=None, rule: str = "mean") -> float:
+    """The team's existence probability.
+
+    ``mean`` (the paper): e_hat = mean{e^j}.
+    ``evidence`` (ours): every agent's update turned its predicted existence into its
+    posterior by a likelihood ratio, odds(e^j) / odds(e^j_{t|t-1}); scans of different agents
+    are independent given the target, so the team's posterior odds are the common prior odds
+    (the mean predicted existence) times the product of those ratios. Agreeing misses or
+    detections of several agents then count several times, as in a centralised filter.
+    """
+    post = np.asarray(posterior, dtype=float)
+    if rule == "mean":
+        return float(np.mean(post))
+    if rule != "evidence":
+        raise ValueError(f"unknown existence fusion rule {rule!r}")
+    pred = np.asarray(predicted, dtype=float)
+    log_odds = np.log(_odds(np.mean(pred))) + np.sum(np.log(_odds(post)) - np.log(_odds(pred)))
+    return float(1.0 / (1.0 + np.exp(-np.clip(log_odds, -700, 700))))
+
+
+def fuse(estimates: list[Estimate], predicted: list[float] | None = None, rule: str = "mean") -> FusedEstimate:
+    """The team's estimate: fused existence (:func:`fused_existence`), and the CI of the agents
+    with e^j > 0.5. ``predicted`` holds the agents' e^j_{t|t-1}, needed by rule ``evidence``."""
     if not estimates:
         raise ValueError("fuse needs at least one estimate")
-    existence = float(np.mean([est.existence for est in estimates]))
+    existence = fused_existence([est.existence for est in estimates], predicted, rule)
     weights = np.zeros(len(estimates))
     sensing = [j for j, est in enumerate(estimates) if est.existence > CONFIRM]
     if not sensing:

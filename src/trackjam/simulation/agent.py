@@ -8,12 +8,13 @@ then posterior estimates for fusion.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from trackjam.config import Scenario
 from trackjam.estimation.bernoulli import BernoulliFilter, Estimate
+from trackjam.world.target import cv_matrices
 
 
 @dataclass(frozen=True)
@@ -50,16 +51,43 @@ class Agent:
     sensor_rng: np.random.Generator  # measurement noise and clutter of this agent's radio
     plan_rng: np.random.Generator  # this agent's GRASP stream
     level_index: int = 0
-    pending: list = field(default_factory=list)
+    last_track: np.ndarray | None = None  # fused state [x, y, z, vx, vy, vz] when last tracked
+    last_track_cov: np.ndarray | None = None
+    steps_since_track: int = 0
+
+    def remember(self, existence: float, mean: np.ndarray | None, cov: np.ndarray | None) -> None:
+        """Keep the team's last confirmed estimate, to search where the target has coasted to."""
+        if existence > 0.5 and mean is not None:
+            self.last_track, self.last_track_cov = np.array(mean, dtype=float), np.array(cov, dtype=float)
+            self.steps_since_track = 0
+        else:
+            self.steps_since_track += 1
+
+    def coasted_track(self, accel_var: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The last confirmed estimate predicted to now by Eq. (1): Phi^k x, Phi P Phi' + Q per step."""
+        if self.last_track is None:
+            return None
+        Phi, Gamma = cv_matrices(1.0)
+        Q = accel_var * Gamma @ Gamma.T
+        x, P = self.last_track, self.last_track_cov
+        for _ in range(self.steps_since_track):
+            x, P = Phi @ x, Phi @ P @ Phi.T + Q
+        return x, P
 
     @classmethod
     def create(cls, index: int, scenario: Scenario, position, aim, seeds: list[np.random.SeedSequence]) -> "Agent":
         filter_seed, sensor_seed, plan_seed = seeds
+        bf = BernoulliFilter(scenario, np.random.default_rng(filter_seed))
+        cue = scenario.filter.cue
+        if cue is not None:
+            mean = np.concatenate([np.asarray(aim, dtype=float), np.zeros(3)])
+            cov = np.diag([cue.position_std**2] * 3 + [cue.velocity_std**2] * 3)
+            bf.reset_to(cue.existence, mean, cov)
         return cls(
             index=index,
             position=np.asarray(position, dtype=float),
             aim=np.asarray(aim, dtype=float),
-            filter=BernoulliFilter(scenario, np.random.default_rng(filter_seed)),
+            filter=bf,
             sensor_rng=np.random.default_rng(sensor_seed),
             plan_rng=np.random.default_rng(plan_seed),
         )

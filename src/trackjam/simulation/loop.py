@@ -69,6 +69,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
     exchange = Exchange()
     log = RunLog(n_agents=len(agents))
     delta = ant.delta_w
+    q_var = s.filter.accel_var if s.filter.accel_var is not None else s.target.accel_var
 
     for t in range(1, s.steps + 1):
         t0 = time.perf_counter()
@@ -85,7 +86,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
         ts = time.perf_counter()
         if x_bar is not None or s.control.fallback == "search":
             # tracking plans at x_bar; a searching team plans around the aim it last had
-            plan_aim = x_bar if x_bar is not None else np.mean([a.aim for a in agents], axis=0)
+            plan_aim = x_bar if x_bar is not None else search_aim(predictions, agents, low, high, q_var)
             problem = build_problem(
                 positions, plan_aim, D, ant, low, high, s.control.at_least, s.control.constraints
             )
@@ -151,9 +152,21 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
 
         # 7. fusion, sent back to every agent
         posteriors = exchange.all_to_all(posteriors)
-        fused = fuse([m.estimate for m in posteriors])
-        if s.fusion.feedback:
-            for a in agents:
+        fused = fuse(
+            [m.estimate for m in posteriors],
+            predicted=[m.estimate.existence for m in predictions],
+            rule=s.fusion.existence,
+        )
+        for a in agents:
+            a.remember(fused.existence, fused.mean, fused.cov)
+            if not s.fusion.feedback:
+                continue
+            if fused.mean is None and s.control.fallback == "search" and a.last_track is not None:
+                # a searching team coasts its lost track: the spatial density is the last fused
+                # estimate predicted by Eq. (1), the existence the fused one (ours)
+                mean, cov = a.coasted_track(q_var)
+                a.filter.reset_to(fused.existence, mean, cov)
+            else:
                 a.filter.reset_to(fused.existence, fused.mean, fused.cov)
 
         # 8. metrics
@@ -199,6 +212,25 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
     steps, agents_log, meas = log.columns()
     summary = summarise(steps, agents_log, s, downed_at=truth.downed_at)
     return RunResult(s, steps, agents_log, meas, summary)
+
+
+def search_aim(predictions, agents, low, high, accel_var: float, spread: float = 10.0) -> np.ndarray:
+    """Where a team that tracks nothing looks (ours, `control.fallback: search`): its last
+    confirmed track coasted by Eq. (1); if it never tracked, the mean predicted position of the
+    agents whose predicted density is compact (position standard deviation under ``spread``
+    metres); else the current aim."""
+    coasting = [a.coasted_track(accel_var) for a in agents]
+    coasting = [c[0][:3] for c in coasting if c is not None]
+    if coasting:
+        return np.clip(np.mean(coasting, axis=0), low, high)
+    compact = [
+        m.estimate.mean[:3]
+        for m in predictions
+        if np.sqrt(np.trace(m.estimate.cov[:3, :3]) / 3) < spread
+    ]
+    if compact:
+        return np.clip(np.mean(compact, axis=0), low, high)
+    return np.mean([a.aim for a in agents], axis=0)
 
 
 def summarise(steps: dict, agents: dict, scenario: Scenario, downed_at: int | None = None) -> dict:
