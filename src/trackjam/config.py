@@ -218,6 +218,12 @@ class Control(_Model):
     samples: int = Field(10000, ge=1, description="n_s, GRASP joint samples per iteration")
     iterations: int = Field(100, ge=1, description="n_I, GRASP iterations")
     neighbours: int = Field(6, ge=2, description="GRASP: size of the list of nearest displacements u-, u+ are drawn from (ours)")
+    threads: int | None = Field(
+        None,
+        ge=1,
+        description="threads running the agents' GRASP searches side by side (same result for any value); "
+        "null: one per agent up to the CPU count, or 1 inside experiment workers",
+    )
     fallback: Literal["hover", "search"] = Field(
         "hover",
         description="when no agent believes in the target: `hover` (MODEL.md: hover, keep the last aim, highest "

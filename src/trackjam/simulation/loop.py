@@ -7,6 +7,7 @@ the team fuses (covariance intersection) -> metrics.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -43,6 +44,15 @@ class RunResult:
     summary: dict
 
 
+def default_threads(n_agents: int) -> int:
+    """One thread per agent's GRASP search, up to the CPU count; 1 where the environment says
+    one thread per process (experiment workers set TRACKJAM_THREADS=1)."""
+    env = os.environ.get("TRACKJAM_THREADS")
+    if env:
+        return max(1, int(env))
+    return max(1, min(n_agents, os.cpu_count() or 1))
+
+
 def _seed_tree(scenario: Scenario) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]]]:
     """One root seed -> the truth's stream and three streams per agent (filter, sensor, plan)."""
     root = np.random.SeedSequence(scenario.seed)
@@ -69,6 +79,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
     exchange = Exchange()
     log = RunLog(n_agents=len(agents))
     delta = ant.delta_w
+    threads = s.control.threads or default_threads(len(agents))
     q_var = s.filter.accel_var if s.filter.accel_var is not None else s.target.accel_var
 
     for t in range(1, s.steps + 1):
@@ -97,6 +108,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
                 samples=s.control.samples,
                 iterations=s.control.iterations,
                 neighbours=s.control.neighbours,
+                threads=threads,
             )
             moves, levels = sol.move, sol.level
             objective = sol.objective if x_bar is not None else np.nan
