@@ -68,6 +68,8 @@ class Response(_Model):
 
 
 class Target(_Model):
+    """The truth target (Section III-A)."""
+
     initial: tuple[Finite, Finite, Finite, Finite, Finite, Finite] | None = Field(
         (20.0, 20.0, 20.0, 1.5, 2.0, 1.7),
         description="x_0 = [x, y, z, vx, vy, vz] [m, m/s]; null: position uniform in the area, velocity uniform in +-filter.birth_speed",
@@ -100,6 +102,8 @@ class Target(_Model):
 
 
 class Agents(_Model):
+    """The pursuers and their admissible moves (Eq. 3)."""
+
     initial: list[Vec3] = Field(
         [(30.0, 30.0, 30.0), (20.0, 10.0, 10.0), (10.0, 15.0, 15.0)],
         min_length=1,
@@ -127,6 +131,8 @@ def _parse_level(v: Any) -> float | None:
 
 
 class Antenna(_Model):
+    """The conic directional antenna that detects and jams (Eqs. 9-10, 13)."""
+
     height: PosFloat = Field(40.0, description="h_a, cone height along its axis [m]")
     opening_angle_deg: float = Field(80.0, description="theta_a, full opening angle of the cone [deg], in (0, 180)")
     r0: PosFloat = Field(6.0, description="R_0, radius of full gain [m]")
@@ -136,7 +142,7 @@ class Antenna(_Model):
         ["off", -50.0, -7.0, 0.5], min_length=1, description="L, transmit levels [dBW]; 'off' is 0 W"
     )
     interference_limit_db: Finite = Field(-40.0, description="delta, interference tolerance of every agent [dBW]")
-    pointing: Literal["truth", "aim"] = Field("truth", description="where the antenna points while transmitting")
+    pointing: Literal["truth", "aim"] = Field("truth", description="where the antenna points while transmitting: `truth` (the paper, Sec. IV-C) or `aim` (ours: the planning aim x_bar)")
 
     @field_validator("opening_angle_deg")
     @classmethod
@@ -169,6 +175,8 @@ class Antenna(_Model):
 
 
 class Sensor(_Model):
+    """The range/azimuth/inclination measurements (Eqs. 6-8)."""
+
     noise_std: Vec3 = Field(
         (0.8, math.pi / 50, math.pi / 50),
         description="Sigma_w diagonal as standard deviations: [rho m, azimuth rad, inclination rad]",
@@ -192,17 +200,21 @@ class Cue(_Model):
 
 
 class Filter(_Model):
+    """Each agent's Bernoulli particle filter (Section V-A)."""
+
     birth_prob: Prob = Field(0.02, description="p_b used by the filter")
     survival_prob: Prob = Field(0.98, description="p_s used by the filter")
     particles: int = Field(10000, ge=10, description="particles of the surviving density")
     birth_particles: int = Field(2000, ge=1, description="particles of the birth density per step")
-    birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t")
+    birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t: `uniform` in the area (the paper) or `measurement` (ours: around the last scan's measurements)")
     birth_speed: NonNegFloat = Field(3.0, description="v_b: birth velocity uniform in +-v_b per axis [m/s]")
     accel_var: NonNegFloat | None = Field(None, description="filter's Sigma_v scale; null: the target's")
     cue: Cue | None = Field(None, description="initial prior around agents.initial_aim (ours); null: e_0 = 0, nothing known")
 
 
 class Fusion(_Model):
+    """Fusion of the agents' estimates (end of Section V-A)."""
+
     feedback: bool = Field(True, description="agents take the fused existence and redraw particles from the fused estimate")
     existence: Literal["mean", "evidence"] = Field(
         "mean",
@@ -212,7 +224,9 @@ class Fusion(_Model):
 
 
 class Control(_Model):
-    solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="controller")
+    """The joint choice of moves and levels (Sections V-B to V-D)."""
+
+    solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="`greedy` (Eq. 11), `grasp` (the paper, Sec. V-D) or `exact` (ours: the proven optimum of Eqs. 12-13)")
     at_least: int = Field(2, ge=1, description="n of Xi^N_n: at least n of N agents detect")
     constraints: bool = Field(True, description="enforce the interference constraints, Eq. (13)")
     samples: int = Field(10000, ge=1, description="n_s, GRASP joint samples per iteration")
@@ -227,11 +241,14 @@ class Control(_Model):
     fallback: Literal["hover", "search"] = Field(
         "hover",
         description="when no agent believes in the target: `hover` (MODEL.md: hover, keep the last aim, highest "
-        "levels the constraints allow) or `search` (ours: plan moves and levels with the solver around the last aim)",
+        "levels the constraints allow) or `search` (ours: plan moves and levels with the solver at the last track "
+        "coasted by Eq. (1), whose Gaussian also reseeds the filters)",
     )
 
 
 class Metrics(_Model):
+    """Tracking error (Section VI)."""
+
     ospa_order: PosFloat = Field(2.0, description="p of OSPA")
     ospa_cutoff: PosFloat = Field(10.0, description="c of OSPA [m]")
 
