@@ -23,7 +23,7 @@ def test_mean_rule_is_the_papers_mean():
 def test_evidence_rule_multiplies_the_likelihood_ratios_on_the_common_prior(prior, posts):
     fused = fused_existence(posts, [prior] * len(posts), rule="evidence")
     expected = odds(prior) * np.prod([odds(e) / odds(prior) for e in posts])
-    assert odds(fused) == pytest.approx(expected, rel=1e-6)
+    assert fused == pytest.approx(expected / (1 + expected), rel=1e-9, abs=1e-12)
     assert 0.0 <= fused <= 1.0
 
 
