@@ -123,6 +123,7 @@ def run(
     check_out_dir(out, s)  # before any work: nothing is computed for a folder we cannot use
 
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     from trackjam.simulation.loop import simulate
@@ -138,15 +139,16 @@ def run(
     table = Table(title=f"{s.name}  seed {s.seed}  solver {s.control.solver}")
     table.add_column("metric")
     table.add_column("value", justify="right")
-    table.add_row("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")
-    table.add_row("jamming incidents per agent", " ".join(str(v) for v in m["jamming_incidents"]))
-    table.add_row("mean power at target [W]", f"{m['target_received_w_mean']:.3g}")
-    table.add_row("mean interference at agents [W]", f"{m['agent_received_w_mean']:.3g}")
-    table.add_row("mean transmit power [W]", f"{m['transmit_w_mean']:.3g}")
-    table.add_row("steps with fused existence > 0.5", f"{m['tracked_steps']}/{m['steps']}")
-    table.add_row("time per step [ms]", f"{1000 * m['step_s_mean']:.1f}")
+    add = lambda label, value: table.add_row(escape(label), value)  # noqa: E731
+    add("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")
+    add("jamming incidents per agent", " ".join(str(v) for v in m["jamming_incidents"]))
+    add("mean power at target [W]", f"{m['target_received_w_mean']:.3g}")
+    add("mean interference at agents [W]", f"{m['agent_received_w_mean']:.3g}")
+    add("mean transmit power [W]", f"{m['transmit_w_mean']:.3g}")
+    add("steps with fused existence > 0.5", f"{m['tracked_steps']}/{m['steps']}")
+    add("time per step [ms]", f"{1000 * m['step_s_mean']:.1f}")
     if m.get("downed_at") is not None:
-        table.add_row("target downed at step", str(m["downed_at"]))
+        add("target downed at step", str(m["downed_at"]))
     Console(width=100).print(table)
     typer.echo(f"wrote {len(files)} files to {out}")
 
