@@ -8,7 +8,7 @@ then posterior estimates for fusion.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -51,6 +51,7 @@ class Agent:
     sensor_rng: np.random.Generator  # measurement noise and clutter of this agent's radio
     plan_rng: np.random.Generator  # this agent's GRASP stream
     level_index: int = 0
+    view: list = field(default_factory=list)  # the last messages received from the team
     last_track: np.ndarray | None = None  # fused state [x, y, z, vx, vy, vz] when last tracked
     last_track_cov: np.ndarray | None = None
     steps_since_track: int = 0
@@ -94,6 +95,10 @@ class Agent:
 
     def predict(self) -> Message:
         return Message(self.index, "prediction", self.position.copy(), self.filter.predict())
+
+    def receive(self, messages: list[Message]) -> None:
+        """This agent's view of the team: what the last exchange brought it."""
+        self.view = messages
 
     def update(self, Z: np.ndarray, point: np.ndarray, level_w: float) -> Message:
         est = self.filter.update(Z, self.position, point, level_w)

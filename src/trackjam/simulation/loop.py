@@ -90,7 +90,10 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
 
         # 2-3. predictions are exchanged; every agent forms the same x_bar from them
         predictions = exchange.all_to_all([a.predict() for a in agents])
-        x_bar = planning_aim(predictions)
+        for a in agents:
+            a.receive(predictions)
+        # each agent forms x_bar from its own view; the views are equal, so are the aims
+        x_bar = planning_aim(agents[0].view)
 
         # 4. controls
         positions = np.array([a.position for a in agents])
@@ -164,6 +167,8 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
 
         # 7. fusion, sent back to every agent
         posteriors = exchange.all_to_all(posteriors)
+        for a in agents:
+            a.receive(posteriors)
         fused = fuse(
             [m.estimate for m in posteriors],
             predicted=[m.estimate.existence for m in predictions],
