@@ -25,7 +25,7 @@ def _groups(quick: bool) -> dict:
     from trackjam.benchmarks import control, filter, run
 
     return {
-        "filter": lambda: [filter.bench_filter_step(repeats=20 if quick else 200)],
+        "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")],
     }
@@ -36,8 +36,9 @@ def _print(group: str, rows: list[dict]) -> None:
     from rich.table import Table
 
     console = Console(width=140)
+    console.rule(group)
     for row in rows:
-        table = Table(title=f"{group}: {row.get('name', '')}", title_justify="left")
+        table = Table(title=str(row.get("name", group)), title_justify="left")
         table.add_column("figure")
         table.add_column("value", justify="right")
         for k, v in row.items():
