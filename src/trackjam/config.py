@@ -209,6 +209,11 @@ class Filter(_Model):
     birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t: `uniform` in the area (the paper) or `measurement` (ours: around the last scan's measurements)")
     birth_speed: NonNegFloat = Field(3.0, description="v_b: birth velocity uniform in +-v_b per axis [m/s]")
     accel_var: NonNegFloat | None = Field(None, description="filter's Sigma_v scale; null: the target's")
+    walls: Literal["reflect", "none"] = Field(
+        "reflect",
+        description="the filter's motion model at the area's walls: `reflect`, as the truth does (ours), or `none`: "
+        "Eq. (1) unbounded, as printed",
+    )
     cue: Cue | None = Field(None, description="initial prior around agents.initial_aim (ours); null: e_0 = 0, nothing known")
 
 

@@ -48,6 +48,7 @@ from scipy.special import expit
 from trackjam.config import Scenario
 from trackjam.estimation.kernels import (
     kernel_cv_predict,
+    kernel_reflect,
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
     kernel_systematic_indices,
@@ -168,6 +169,7 @@ class BernoulliFilter:
         self.lambda_c = float(scenario.sensor.clutter_rate)
         # lambda_c = 0 would make g / (lambda_c p_c) infinite; a tiny floor keeps logs finite
         self.log_lambda_c = math.log(max(self.lambda_c * clutter_density(self.ant.max_range), 1e-300))
+        self.walls = f.walls
         self.low = np.asarray(scenario.area.low, dtype=float)
         self.high = np.asarray(scenario.area.high, dtype=float)
         self.log_volume = float(np.sum(np.log(self.high - self.low)))
@@ -254,6 +256,8 @@ class BernoulliFilter:
             self._w_surv, self._w_birth = 1.0, 0.0
         # Eq. (1): x_t = Phi x_{t-1} + Gamma nu, nu ~ N(0, accel_var I3)
         kernel_cv_predict(self.X, self.rng.standard_normal((self.n, 3)), DT, math.sqrt(self.accel_var))
+        if self.walls == "reflect":
+            kernel_reflect(self.X, self.low, self.high)
         X = self.X
         self._e_pred = e_pred
 

@@ -183,3 +183,21 @@ def kernel_cv_predict(X, xi, dt, sigma_a):
             nu = sigma_a * xi[i, a]
             X[i, a] += dt * X[i, 3 + a] + h * nu
             X[i, 3 + a] += dt * nu
+
+
+@njit(cache=True)
+def kernel_reflect(X, low, high):
+    """Fold particles back into the box [low, high] in place, flipping the velocity component
+    of each wall crossed: the truth's wall model (world/target.py ``reflect``) for the filter."""
+    for i in range(X.shape[0]):
+        for a in range(3):
+            for _ in range(8):
+                if X[i, a] < low[a]:
+                    X[i, a] = 2.0 * low[a] - X[i, a]
+                    X[i, 3 + a] = -X[i, 3 + a]
+                elif X[i, a] > high[a]:
+                    X[i, a] = 2.0 * high[a] - X[i, a]
+                    X[i, 3 + a] = -X[i, 3 + a]
+                else:
+                    break
+            X[i, a] = min(max(X[i, a], low[a]), high[a])
