@@ -72,7 +72,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
 
     initial_aim = s.agents.initial_aim
     if initial_aim is None:
-        initial_aim = truth._pending_initial[:3]
+        initial_aim = truth.first_state[:3]
     agents = [
         Agent.create(j, s, u, initial_aim, agent_seeds[j]) for j, u in enumerate(s.agents.initial)
     ]

@@ -158,5 +158,10 @@ class TruthTarget:
             self.downed_at = t
 
     @property
+    def first_state(self) -> np.ndarray | None:
+        """The state the target will appear with (None once it has appeared)."""
+        return None if self._pending_initial is None else self._pending_initial.copy()
+
+    @property
     def position(self) -> np.ndarray | None:
         return None if self.state is None else self.state[:3]
