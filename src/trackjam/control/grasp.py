@@ -73,6 +73,45 @@ def _value(p_d, gain, levels_w, delta, n, constrained, cand, level, p, q):
     return xi
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _sample_xi(p_flat, kk, n, p, q):
+    """Xi^N_n of the pairs ``kk``: :func:`kernel_at_least`'s recursion, same operations in the
+    same order (so bit-identical), unrolled into scalars for n <= 3, the hot case of the
+    sampling loop (3x faster than the general recursion over an array)."""
+    N = kk.shape[0]
+    if n <= 0:
+        return 1.0
+    if n > N:
+        return 0.0
+    if n == 1:
+        q0, q1 = 1.0, 0.0
+        for j in range(N):
+            pj = p_flat[j, kk[j]]
+            q1 += q0 * pj
+            q0 *= 1.0 - pj
+        return q1
+    if n == 2:
+        q0, q1, q2 = 1.0, 0.0, 0.0
+        for j in range(N):
+            pj = p_flat[j, kk[j]]
+            q2 += q1 * pj
+            q1 = q1 * (1.0 - pj) + q0 * pj
+            q0 *= 1.0 - pj
+        return q2
+    if n == 3:
+        q0, q1, q2, q3 = 1.0, 0.0, 0.0, 0.0
+        for j in range(N):
+            pj = p_flat[j, kk[j]]
+            q3 += q2 * pj
+            q2 = q2 * (1.0 - pj) + q1 * pj
+            q1 = q1 * (1.0 - pj) + q0 * pj
+            q0 *= 1.0 - pj
+        return q3
+    for j in range(N):
+        p[j] = p_flat[j, kk[j]]
+    return kernel_at_least(p, n, q)
+
+
 @njit(cache=True, nogil=True)
 def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_cand, neigh,
                         n_neigh, samples, iterations, best_cand, best_level):
@@ -100,10 +139,8 @@ def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_c
         it_best = -np.inf
         for _s in range(samples):
             for i in range(N):
-                k = min(int(rng.random() * M[i]), M[i] - 1)
-                kk[i] = k
-                p[i] = p_flat[i, k]
-            xi = kernel_at_least(p, n, q)
+                kk[i] = min(int(rng.random() * M[i]), M[i] - 1)
+            xi = _sample_xi(p_flat, kk, n, p, q)
             if xi > it_best:
                 for i in range(N):
                     c[i] = pair_c[kk[i]]
