@@ -1,7 +1,6 @@
 """The admissible displacements of Eq. (3) as MODEL.md reads them."""
 
 import numpy as np
-import pytest
 
 from trackjam.world.moves import admissible_moves, displacement_set
 
