@@ -281,3 +281,8 @@ class Scenario(_Model):
     @property
     def n_agents(self) -> int:
         return len(self.agents.initial)
+
+    @property
+    def filter_accel_var(self) -> float:
+        """The filter's Sigma_v scale: `filter.accel_var`, or the truth's when that is null."""
+        return float(self.target.accel_var if self.filter.accel_var is None else self.filter.accel_var)

@@ -163,7 +163,7 @@ class BernoulliFilter:
         self.n_b = int(f.birth_particles)
         self.birth = f.birth
         self.v_b = float(f.birth_speed)
-        self.accel_var = float(scenario.target.accel_var if f.accel_var is None else f.accel_var)
+        self.accel_var = scenario.filter_accel_var
         self.ant = AntennaModel.from_scenario(scenario)
         self.noise_std = np.asarray(scenario.sensor.noise_std, dtype=float)
         self.lambda_c = float(scenario.sensor.clutter_rate)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -15,6 +14,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy import stats
+
+from trackjam.files import atomic_write, is_temporary
 
 # (column stem in the tables, key of a trial record, meaning [unit], paper)
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -60,12 +61,9 @@ def record_table(record: Mapping[str, Any]) -> pa.Table:
 
 
 def write_trial(folder: Path, record: Mapping[str, Any]) -> Path:
-    """Write a trial atomically: to a temporary name in the same folder, then ``os.replace``."""
+    """Write a trial atomically (:func:`trackjam.files.atomic_write`)."""
     final = folder / trial_filename(int(record["config"]), int(record["trial"]))
-    tmp = folder / f".{final.name}.{os.getpid()}.tmp"
-    pq.write_table(record_table(record), tmp)
-    os.replace(tmp, final)
-    return final
+    return atomic_write(final, lambda tmp: pq.write_table(record_table(record), tmp))
 
 
 def read_trial(path: Path) -> dict:
@@ -76,7 +74,7 @@ def finished_trials(folder: Path) -> set[tuple[int, int]]:
     """(config, trial) of every complete trial file; stale temporary files are removed."""
     done = set()
     for p in folder.iterdir():
-        if p.name.startswith(".") and p.name.endswith(".tmp"):
+        if is_temporary(p):
             p.unlink(missing_ok=True)
         elif p.suffix == ".parquet" and p.name.startswith("c"):
             c, _, t = p.stem.partition("-t")
@@ -129,13 +127,14 @@ def table_rows(
 
 
 def write_table(path: Path, rows: list[dict[str, Any]]) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(list(rows[0]))
-        for row in rows:
-            w.writerow([_fmt(v) for v in row.values()])
-    os.replace(tmp, path)
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(list(rows[0]))
+            for row in rows:
+                w.writerow([_fmt(v) for v in row.values()])
+
+    atomic_write(path, write)
 
 
 def read_table(path: Path) -> list[dict[str, str]]:

@@ -27,22 +27,16 @@ class Message:
     estimate: Estimate
 
 
-@dataclass
 class Exchange:
     """All-to-all broadcast: every agent receives every message of a round, its own included."""
 
-    rounds: int = 0
-    sent: int = 0
-
     def all_to_all(self, messages: list[Message]) -> list[Message]:
-        self.rounds += 1
-        self.sent += len(messages) * max(len(messages) - 1, 0)
         return sorted(messages, key=lambda m: m.sender)
 
 
 @dataclass
 class Agent:
-    """One pursuer: position u^j, last aim, transmit level, filter and random streams."""
+    """One pursuer: position u^j, last aim, filter, random streams and view of the team."""
 
     index: int
     position: np.ndarray
@@ -50,7 +44,6 @@ class Agent:
     filter: BernoulliFilter
     sensor_rng: np.random.Generator  # measurement noise and clutter of this agent's radio
     plan_rng: np.random.Generator  # this agent's GRASP stream
-    level_index: int = 0
     view: list = field(default_factory=list)  # the last messages received from the team
     last_track: np.ndarray | None = None  # fused state [x, y, z, vx, vy, vz] when last tracked
     last_track_cov: np.ndarray | None = None

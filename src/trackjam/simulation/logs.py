@@ -86,10 +86,3 @@ def write_parquet(columns: dict[str, np.ndarray], path: Path) -> None:
     import pyarrow.parquet as pq
 
     pq.write_table(pa.table({k: np.asarray(v) for k, v in columns.items()}), path)
-
-
-def read_parquet(path: Path) -> dict[str, np.ndarray]:
-    import pyarrow.parquet as pq
-
-    table = pq.read_table(path)
-    return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}

@@ -80,7 +80,7 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
     log = RunLog(n_agents=len(agents))
     delta = ant.delta_w
     threads = s.control.threads or default_threads(len(agents))
-    q_var = s.filter.accel_var if s.filter.accel_var is not None else s.target.accel_var
+    q_var = s.filter_accel_var
 
     for t in range(1, s.steps + 1):
         t0 = time.perf_counter()
@@ -128,9 +128,8 @@ def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = N
 
         # 5. move and transmit
         prev = positions
-        for a, k, lv in zip(agents, moves, levels):
+        for a, k in zip(agents, moves):
             a.position = a.position + D[k]
-            a.level_index = int(lv)
         positions = np.array([a.position for a in agents])
         if s.antenna.pointing == "truth" and x_true is not None:
             points = np.repeat(x_true[None, :], len(agents), axis=0)

@@ -8,13 +8,13 @@ so nothing of the user's is overwritten. Each file is written to a temporary nam
 from __future__ import annotations
 
 import json
-import os
 import tempfile
 from pathlib import Path
 from typing import Callable
 
 from trackjam.config import Scenario, scenario_to_yaml
 from trackjam.errors import ConfigError
+from trackjam.files import atomic_write
 
 RUN_FILES = (
     "scenario.yaml",
@@ -58,19 +58,6 @@ def _existing_parent(p: Path) -> Path:
     if not p.is_dir():
         raise ConfigError(f"--out {p}: is a file, not a folder")
     return p
-
-
-def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_run(result, out: Path, figures: bool = True) -> list[Path]:

@@ -1,0 +1,33 @@
+"""Writing files so that a reader never sees half of one: write to a temporary name beside the
+target (a dot file holding ``.tmp``), then rename it into place."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+TEMP_MARK = ".tmp"
+
+
+def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
+
+    The temporary name keeps ``path``'s suffix (writers such as matplotlib infer the format from
+    it); on failure it is removed and nothing at ``path`` changes."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMP_MARK + path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def is_temporary(p: Path) -> bool:
+    """A leftover of :func:`atomic_write` (an interrupted write)."""
+    return p.name.startswith(".") and TEMP_MARK in p.name
