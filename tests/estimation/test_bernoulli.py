@@ -12,7 +12,7 @@ from trackjam.config import load_scenario
 from trackjam.estimation.bernoulli import BernoulliFilter, bernoulli_update, posterior_existence
 from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
 from trackjam.radio.measurement import clutter_density, h, sample_scan, wrap_angle
-from trackjam.world.target import cv_step
+from trackjam.world.motion import cv_step
 
 S = load_scenario("paper-fig3")
 ANT = AntennaModel.from_scenario(S)

@@ -17,7 +17,7 @@ from trackjam.estimation.kernels import (
 )
 from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
 from trackjam.radio.measurement import clutter_density, h, wrap_angle
-from trackjam.world.target import cv_matrices
+from trackjam.world.motion import cv_matrices
 
 S = load_scenario("paper-fig3")
 ANT = AntennaModel.from_scenario(S)

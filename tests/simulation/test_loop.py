@@ -163,21 +163,3 @@ def test_a_jammed_target_lands_and_the_run_reports_when():
     assert np.all(received[(t > downed - 3) & (t <= downed)] >= 0.1)
     z = r.steps["truth_z"][t > downed]
     assert np.all(np.diff(z) <= 1e-9) and z[-1] < r.steps["truth_z"][t == downed][0]
-
-
-def test_agents_exchange_messages_every_step():
-    from trackjam.simulation.agent import Exchange
-
-    calls = []
-    original = Exchange.all_to_all
-
-    def spy(self, messages):
-        calls.append(sorted(m.kind for m in messages))
-        return original(self, messages)
-
-    Exchange.all_to_all = spy
-    try:
-        simulate(load_scenario("paper-fig3", ["control.solver=exact", "steps=3"]))
-    finally:
-        Exchange.all_to_all = original
-    assert calls == [["prediction"] * 3, ["posterior"] * 3] * 3

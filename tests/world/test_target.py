@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.world.target import TruthTarget, cv_matrices, cv_step, reflect
+from trackjam.world.motion import cv_matrices, cv_step
+from trackjam.world.target import TruthTarget, reflect
 
 
 def test_cv_sample_covariance_matches_phi_p_phi_plus_gamma_q_gamma():

@@ -1,20 +1,20 @@
-"""A pursuer agent and the message exchange between agents.
+"""A pursuer agent: its position, aim, filter, random streams, and what it remembers.
 
-Each agent owns its filter, its random streams and its view of the others; everything that
-passes between agents goes through :class:`Exchange`, so the distributed structure of the paper
-(Fig. 2 and Section V-D) is visible: agents share positions and predicted estimates, then plans,
-then posterior estimates for fusion.
+Everything that passes between agents is a :class:`Message`, carried by the team's exchange
+(:mod:`trackjam.simulation.team`): positions and predicted estimates, then plans, then posterior
+estimates for fusion (the paper's Fig. 2 and Section V-D).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from trackjam.config import Scenario
 from trackjam.estimation.bernoulli import BernoulliFilter, Estimate
-from trackjam.world.target import cv_matrices
+from trackjam.estimation.fusion import CONFIRM
+from trackjam.world.motion import cv_coast
 
 
 @dataclass(frozen=True)
@@ -27,16 +27,9 @@ class Message:
     estimate: Estimate
 
 
-class Exchange:
-    """All-to-all broadcast: every agent receives every message of a round, its own included."""
-
-    def all_to_all(self, messages: list[Message]) -> list[Message]:
-        return sorted(messages, key=lambda m: m.sender)
-
-
 @dataclass
 class Agent:
-    """One pursuer: position u^j, last aim, filter, random streams and view of the team."""
+    """One pursuer: position u^j, last aim, filter, random streams, and the team's last track."""
 
     index: int
     position: np.ndarray
@@ -44,29 +37,23 @@ class Agent:
     filter: BernoulliFilter
     sensor_rng: np.random.Generator  # measurement noise and clutter of this agent's radio
     plan_rng: np.random.Generator  # this agent's GRASP stream
-    view: list = field(default_factory=list)  # the last messages received from the team
     last_track: np.ndarray | None = None  # fused state [x, y, z, vx, vy, vz] when last tracked
     last_track_cov: np.ndarray | None = None
     steps_since_track: int = 0
 
     def remember(self, existence: float, mean: np.ndarray | None, cov: np.ndarray | None) -> None:
         """Keep the team's last confirmed estimate, to search where the target has coasted to."""
-        if existence > 0.5 and mean is not None:
+        if existence > CONFIRM and mean is not None:
             self.last_track, self.last_track_cov = np.array(mean, dtype=float), np.array(cov, dtype=float)
             self.steps_since_track = 0
         else:
             self.steps_since_track += 1
 
     def coasted_track(self, accel_var: float) -> tuple[np.ndarray, np.ndarray] | None:
-        """The last confirmed estimate predicted to now by Eq. (1): Phi^k x, Phi P Phi' + Q per step."""
+        """The last confirmed estimate predicted to now by Eq. (1)."""
         if self.last_track is None:
             return None
-        Phi, Gamma = cv_matrices(1.0)
-        Q = accel_var * Gamma @ Gamma.T
-        x, P = self.last_track, self.last_track_cov
-        for _ in range(self.steps_since_track):
-            x, P = Phi @ x, Phi @ P @ Phi.T + Q
-        return x, P
+        return cv_coast(self.last_track, self.last_track_cov, accel_var, self.steps_since_track)
 
     @classmethod
     def create(cls, index: int, scenario: Scenario, position, aim, seeds: list[np.random.SeedSequence]) -> "Agent":
@@ -89,19 +76,6 @@ class Agent:
     def predict(self) -> Message:
         return Message(self.index, "prediction", self.position.copy(), self.filter.predict())
 
-    def receive(self, messages: list[Message]) -> None:
-        """This agent's view of the team: what the last exchange brought it."""
-        self.view = messages
-
     def update(self, Z: np.ndarray, point: np.ndarray, level_w: float) -> Message:
         est = self.filter.update(Z, self.position, point, level_w)
         return Message(self.index, "posterior", self.position.copy(), est)
-
-
-def planning_aim(predictions: list[Message]) -> np.ndarray | None:
-    """x_bar of Eq. (12): mean of the predicted positions of the agents whose predicted
-    existence e_{t|t-1} exceeds 0.5; None when no agent believes in the target."""
-    believers = [m.estimate.mean[:3] for m in predictions if m.estimate.existence > 0.5]
-    if not believers:
-        return None
-    return np.mean(believers, axis=0)

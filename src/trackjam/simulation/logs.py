@@ -60,6 +60,12 @@ class RunLog:
         for k, v in cols.items():
             self.agents.setdefault(k, []).append(np.array(v, copy=True))
 
+    def add(self, record) -> None:
+        """The rows of one :class:`~trackjam.simulation.engine.StepRecord`."""
+        self.add_step(**record.step)
+        self.add_agents(**record.agents)
+        self.add_measurements(record.t, record.scans)
+
     def add_measurements(self, t: int, scans: list[tuple[np.ndarray, np.ndarray]]) -> None:
         for j, (Z, from_target) in enumerate(scans):
             m = len(Z)

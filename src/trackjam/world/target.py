@@ -8,22 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from trackjam.config import Scenario
-
-
-def cv_matrices(dt: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Phi and Gamma of Eq. (1) for the state [x, y, z, vx, vy, vz]."""
-    I3 = np.eye(3)
-    Phi = np.block([[I3, dt * I3], [np.zeros((3, 3)), I3]])
-    Gamma = np.vstack([0.5 * dt**2 * I3, dt * I3])
-    return Phi, Gamma
-
-
-def cv_step(x: np.ndarray, rng: np.random.Generator, accel_var: float, dt: float = 1.0) -> np.ndarray:
-    """x_t = Phi x_{t-1} + Gamma nu, nu ~ N(0, accel_var I3). Works on (6,) or (n, 6)."""
-    Phi, Gamma = cv_matrices(dt)
-    x = np.asarray(x, dtype=float)
-    nu = rng.normal(0.0, np.sqrt(accel_var), size=x.shape[:-1] + (3,))
-    return x @ Phi.T + nu @ Gamma.T
+from trackjam.world.motion import cv_step
 
 
 def reflect(x: np.ndarray, low, high) -> np.ndarray:

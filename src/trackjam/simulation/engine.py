@@ -1,0 +1,176 @@
+"""The step-wise engine: ``Simulation(scenario)``, ``reset()``, ``step(actions=None)``.
+
+One step, in the order of the paper's Fig. 2, each stage one call into the package that owns it:
+the truth moves -> each agent predicts and the team exchanges predictions -> the team plans
+(or takes the given actions) -> agents move and transmit -> each agent receives its scan and
+updates its filter -> the team exchanges and fuses posteriors -> the step is measured.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from trackjam.config import Scenario
+from trackjam.control.planning import Plan, plan_step
+from trackjam.estimation.fusion import CONFIRM
+from trackjam.metrics.ospa import ospa
+from trackjam.metrics.summary import summarise
+from trackjam.radio.antenna import detection_probability, interference_matrix, received_power
+from trackjam.radio.measurement import sample_scan
+from trackjam.simulation.agent import Agent
+from trackjam.simulation.build import Components, build
+from trackjam.simulation.logs import RunLog
+from trackjam.simulation.team import Team
+from trackjam.world.target import TruthTarget
+
+
+@dataclass(frozen=True)
+class Transmission:
+    """What the antennas did during a step (Eqs. 9-10)."""
+
+    points: np.ndarray  # (N, 3) where each antenna pointed [m]
+    level_w: np.ndarray  # (N,) transmit power [W]
+    interference_w: np.ndarray  # (N,) power each agent received from the others [W]
+    to_target_w: np.ndarray  # (N,) power each agent put on the target [W]
+    p_d: np.ndarray  # (N,) each agent's detection probability of the target
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One step's record: the rows it adds to the step, agent and measurement logs."""
+
+    t: int
+    step: dict
+    agents: dict
+    scans: list[tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class RunResult:
+    """Everything one run produced: the resolved scenario, the logs as column arrays, and the
+    summary figures (:func:`trackjam.metrics.summary.summarise`)."""
+
+    scenario: Scenario
+    steps: dict[str, np.ndarray]
+    agents: dict[str, np.ndarray]
+    measurements: dict[str, np.ndarray]
+    summary: dict
+
+
+class Simulation:
+    """A scenario run one step at a time. ``step()`` lets the configured solver decide;
+    ``step((moves, levels))`` applies the given displacement and level indices, one per agent."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.c: Components = build(scenario)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to t = 0 with fresh random streams from the scenario's seed."""
+        c, s = self.c, self.scenario
+        truth_seed, agent_seeds = c.seed_tree()
+        self.truth = TruthTarget(s, np.random.default_rng(truth_seed))
+        aim = c.initial_aim if c.initial_aim is not None else self.truth.first_state[:3]
+        agents = [Agent.create(j, s, u, aim, agent_seeds[j]) for j, u in enumerate(c.initial_positions)]
+        self.team = Team(agents, c.team)
+        self.log = RunLog(n_agents=len(agents))
+        self.t = 0
+
+    @property
+    def done(self) -> bool:
+        return self.t >= self.scenario.steps
+
+    def step(self, actions: tuple[np.ndarray, np.ndarray] | None = None) -> StepRecord:
+        if self.done:
+            raise RuntimeError(f"the run has ended (step {self.t} of {self.scenario.steps}); call reset()")
+        c, team, truth = self.c, self.team, self.truth
+        t0 = time.perf_counter()
+        self.t = t = self.t + 1
+        truth.step(t)
+        team.predict()
+        x_bar = team.planning_aims()[0]  # every agent received every prediction: the aims agree
+        prev = team.positions
+        plan = self._plan(x_bar, actions)
+        if plan.aim is not None:
+            team.steer(plan.aim)
+        team.move(c.displacements[plan.moves])
+        tx = self._transmit(plan)
+        truth.apply_jamming(t, float(tx.to_target_w.sum()))
+        scans = self._scans(tx)
+        posteriors = team.update([Z for Z, _ in scans], tx.points, tx.level_w)
+        fused = team.fuse(posteriors)
+        est = fused.mean[:3] if (fused.existence > CONFIRM and fused.mean is not None) else None
+        truth_set = truth.position if truth.detectable else None
+        err = ospa(truth_set, est, c=c.ospa_cutoff, p=c.ospa_order)
+        record = StepRecord(
+            t=t,
+            step=dict(
+                t=t, target_exists=truth.exists, target_detectable=truth.detectable,
+                truth=truth.position, existence=fused.existence, estimate=est, ospa=err, aim=x_bar,
+                mode=plan.mode, objective=plan.objective, target_received_w=float(tx.to_target_w.sum()),
+                solve_s=plan.solve_s, step_s=time.perf_counter() - t0,
+            ),
+            agents=dict(
+                t=t, prev=prev, pos=team.positions, level_index=np.asarray(plan.levels), power_w=tx.level_w,
+                point=tx.points, p_d=tx.p_d, detected=np.array([bool(f.any()) for _, f in scans]),
+                n_measurements=np.array([len(Z) for Z, _ in scans]),
+                existence=np.array([m.estimate.existence for m in posteriors]),
+                interference_w=tx.interference_w, jammed=tx.interference_w >= c.antenna.delta_w,
+                to_target_w=tx.to_target_w,
+            ),
+            scans=scans,
+        )
+        self.log.add(record)
+        return record
+
+    def _plan(self, x_bar: np.ndarray | None, actions) -> Plan:
+        team, c = self.team, self.c
+        if actions is not None:
+            moves, levels = (np.asarray(a, dtype=np.int64) for a in actions)
+            return Plan("external", x_bar, moves, levels, np.nan, 0.0)
+        search_at = team.search_points(c.low, c.high)[0] if x_bar is None else None
+        return plan_step(team.positions, x_bar, search_at, team.aims, c.displacements, c.antenna,
+                         c.low, c.high, c.plan, [a.plan_rng for a in team.agents])
+
+    def _transmit(self, plan: Plan) -> Transmission:
+        """Antennas point at the true target (`pointing: truth`, the paper) or at the aim, and
+        transmit the planned levels; occlusion hides the target from detection, while the
+        jamming power still reaches it."""
+        c, truth, team = self.c, self.truth, self.team
+        n = len(team.agents)
+        x_true = truth.position
+        positions = team.positions
+        if c.pointing == "truth" and x_true is not None:
+            points = np.repeat(x_true[None, :], n, axis=0)
+        else:
+            points = team.aims
+        level_w = c.antenna.levels_w[np.asarray(plan.levels, dtype=np.int64)]
+        interference = interference_matrix(positions, points, level_w, c.antenna).sum(axis=1)
+        p_d, to_target = np.zeros(n), np.zeros(n)
+        if truth.exists:
+            to_target = received_power(x_true, positions, points, level_w, c.antenna)
+            if truth.detectable:
+                p_d = detection_probability(x_true, positions, points, level_w, c.antenna)
+        return Transmission(points, level_w, interference, to_target, p_d)
+
+    def _scans(self, tx: Transmission) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Each agent's scan (Eqs. 6-8): a detection with probability p_D, plus clutter."""
+        c, truth = self.c, self.truth
+        target = truth.position if truth.detectable else None
+        return [
+            sample_scan(a.sensor_rng, target, a.position, float(tx.p_d[j]), c.noise_std, c.clutter_rate,
+                        c.antenna.max_range)
+            for j, a in enumerate(self.team.agents)
+        ]
+
+    def result(self) -> RunResult:
+        """The logs so far, as column arrays, and their summary."""
+        s = self.scenario
+        steps, agents, meas = self.log.columns()
+        summary = summarise(steps, agents, name=s.name, seed=s.seed, n_agents=s.n_agents,
+                            solver=s.control.solver, downed_at=self.truth.downed_at)
+        return RunResult(s, steps, agents, meas, summary)
