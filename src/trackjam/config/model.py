@@ -242,10 +242,13 @@ class Control(_Model):
 
 
 class Metrics(_Model):
-    """Tracking error (Section VI)."""
+    """Tracking error (Section VI) and track quality judged by the truth (ours)."""
 
     ospa_order: PosFloat = Field(2.0, description="p of OSPA")
     ospa_cutoff: PosFloat = Field(10.0, description="c of OSPA [m]")
+    gate: PosFloat = Field(
+        5.0, description="track quality (ours): held = confirmed and within gate of the truth [m]"
+    )
 
 
 class Scenario(_Model):

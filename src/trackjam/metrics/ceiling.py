@@ -1,0 +1,80 @@
+"""The clairvoyant-chaser ceiling (ours): how often a team that knows the true position could
+keep an agent close to the target, on the same truth trajectory.
+
+Every step each agent moves at most ``max_step`` metres straight toward the target's true
+position (ending on it when it is nearer), inside the area; while the target is absent it
+hovers. The ceiling is the share of detectable steps at which the nearest agent is within ``d``
+of the target. It is a reference, not a proof: a planner that anticipates the target could in
+principle beat it. The proven bound (no agent that moves at most ``max_step`` per step is
+nearer than ``|x_t - u_0| - t max_step``) is 1.0 on the Fig. 3 truths of seeds 1-20, so tells nothing there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# At 8 m the detection probability at the top power level is p_D^max (R_0 / 8)^n_e
+# = 0.95 (6/8)^2 = 0.53 (Eq. 9 with the paper's R_0 = 6 m, n_e = 2): a coin flip per agent.
+NEAR = 8.0
+
+
+@dataclass(frozen=True)
+class Ceiling:
+    share: float | None  # detectable steps with the nearest chaser within d, over detectable steps
+    d: float  # [m]
+    nearest: np.ndarray  # (T,) distance of the nearest chaser to the target [m]; NaN while absent
+    positions: np.ndarray  # (T, N, 3) chasers' positions after each step's move [m]
+
+    def summary(self) -> dict:
+        """summary.json keys: ``ceiling_share`` (share of the detectable steps, None when there
+        are none) and ``ceiling_d_m`` [m]."""
+        return {"ceiling_share": self.share, "ceiling_d_m": self.d}
+
+
+def chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, high) -> np.ndarray:
+    """Positions (T, N, 3) of N agents that start at ``initial`` (N, 3) and, at each step t,
+    move at most ``max_step`` [m] straight toward ``truth[t]`` (T, 3; rows with NaN: the target
+    is absent and they hover), clipped to the box [low, high]."""
+    if not max_step >= 0:
+        raise ValueError(f"max_step must be >= 0 m, got {max_step}")
+    truth = np.asarray(truth, dtype=float).reshape(-1, 3)
+    u = np.array(initial, dtype=float).reshape(-1, 3)
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    out = np.empty((len(truth), len(u), 3))
+    for t, x in enumerate(truth):
+        if np.isfinite(x).all():
+            gap = x - u
+            dist = np.linalg.norm(gap, axis=1, keepdims=True)
+            # moving the whole gap when it is shorter than a step lands exactly on the target
+            frac = np.minimum(1.0, max_step / np.where(dist > 0, dist, 1.0))
+            u = np.clip(u + frac * gap, low, high)
+        out[t] = u
+    return out
+
+
+def clairvoyant_ceiling(
+    truth: np.ndarray,
+    detectable: np.ndarray,
+    initial: np.ndarray,
+    max_step: float,
+    low,
+    high,
+    d: float = NEAR,
+) -> Ceiling:
+    """The chaser's ceiling on one truth trajectory: ``truth`` (T, 3) true positions per step
+    (NaN while absent), ``detectable`` (T,) the target is present and not occluded, ``initial``
+    (N, 3) the agents' positions at t = 0, ``max_step`` the largest radial step [m]
+    (``max(agents.radial_steps)``), ``low``, ``high`` the area's corners, ``d`` [m]."""
+    if not d > 0:
+        raise ValueError(f"d must be > 0 m, got {d}")
+    truth = np.asarray(truth, dtype=float).reshape(-1, 3)
+    detectable = np.asarray(detectable, dtype=bool)
+    if np.any(detectable & ~np.isfinite(truth).all(axis=1)):
+        raise ValueError("a detectable step has no true position")
+    positions = chase(truth, initial, max_step, low, high)
+    nearest = np.linalg.norm(positions - truth[:, None, :], axis=2).min(axis=1)
+    n = int(detectable.sum())
+    share = int((detectable & (nearest <= d)).sum()) / n if n else None
+    return Ceiling(share=share, d=float(d), nearest=nearest, positions=positions)
