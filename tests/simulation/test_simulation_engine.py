@@ -50,14 +50,14 @@ def test_step_after_the_end_is_refused():
         sim.step()
 
 
-def test_every_step_has_a_prediction_round_then_a_posterior_round(monkeypatch):
+def test_every_step_has_prediction_plan_and_posterior_rounds(monkeypatch):
     kinds = []
-    original = Exchange.broadcast
+    original = Exchange.send
 
-    def spy(self, messages):
-        kinds.append(sorted(m.kind for m in messages))
-        return original(self, messages)
+    def spy(self, t, kind, messages):
+        kinds.append((t, kind, len(messages)))
+        return original(self, t, kind, messages)
 
-    monkeypatch.setattr(Exchange, "broadcast", spy)
+    monkeypatch.setattr(Exchange, "send", spy)
     simulate(load_scenario("paper-fig3", FAST[:2] + ["steps=3"]))
-    assert kinds == [["prediction"] * 3, ["posterior"] * 3] * 3
+    assert kinds == [(t, k, 3) for t in (1, 2, 3) for k in ("prediction", "plan", "posterior")]

@@ -241,6 +241,26 @@ class Control(_Model):
     )
 
 
+class Failure(_Model):
+    """One agent's failure from a given step on (ours; SMA-NBO's fault patterns)."""
+
+    agent: int = Field(ge=0, description="index of the failing agent")
+    step: int = Field(ge=1, description="first step of the failure")
+    mode: Literal["publisher", "channel", "breakdown"] = Field(
+        description="`publisher`: its messages no longer reach anyone (it still receives and acts); `channel`: it "
+        "neither sends nor receives (acts alone on its own filter); `breakdown`: the agent stops (hovers, "
+        "transmits nothing, sends and receives nothing)"
+    )
+
+
+class Comms(_Model):
+    """The team's message exchange and its faults (ours; the paper assumes every message arrives)."""
+
+    loss: Prob = Field(0.0, description="probability that each message from one agent to another is lost")
+    delay_steps: int = Field(0, ge=0, le=1000, description="steps a message takes to arrive")
+    failures: list[Failure] = Field(default_factory=list, description="agents that fail at a given step")
+
+
 class Metrics(_Model):
     """Tracking error (Section VI) and track quality judged by the truth (ours)."""
 
@@ -263,6 +283,7 @@ class Scenario(_Model):
     filter: Filter = Field(default_factory=Filter)
     fusion: Fusion = Field(default_factory=Fusion)
     control: Control = Field(default_factory=Control)
+    comms: Comms = Field(default_factory=Comms)
     metrics: Metrics = Field(default_factory=Metrics)
 
     @model_validator(mode="after")
@@ -274,6 +295,9 @@ class Scenario(_Model):
         for j, u in enumerate(self.agents.initial):
             if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):
                 raise ValueError(f"agents.initial[{j}] {list(u)} lies outside the area")
+        for k, f in enumerate(self.comms.failures):
+            if f.agent >= n:
+                raise ValueError(f"comms.failures[{k}].agent {f.agent} is not an agent index (0..{n - 1})")
         if self.target.initial is not None:
             x = self.target.initial
             if any(not lo[k] <= x[k] <= hi[k] for k in range(3)):

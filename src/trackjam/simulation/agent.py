@@ -19,12 +19,21 @@ from trackjam.world.motion import cv_coast
 
 @dataclass(frozen=True)
 class Message:
-    """What one agent tells the others at one stage of a step."""
+    """What one agent tells the others at one round of step ``stamp``.
+
+    ``prediction``: its position, aim, predicted estimate, and the team's lost track coasted to
+    now as it remembers it (searching); ``plan``: the plan it proposes; ``posterior``: its
+    updated estimate with the predicted existence it started from (for evidence fusion)."""
 
     sender: int
-    kind: str  # "prediction" | "posterior"
-    position: np.ndarray
-    estimate: Estimate
+    kind: str  # "prediction" | "plan" | "posterior"
+    stamp: int
+    position: np.ndarray | None = None
+    estimate: Estimate | None = None
+    aim: np.ndarray | None = None
+    coasted: np.ndarray | None = None
+    prior_existence: float | None = None
+    plan: object | None = None  # a trackjam.control.distributed.Proposal
 
 
 @dataclass
@@ -73,9 +82,13 @@ class Agent:
             plan_rng=np.random.default_rng(plan_seed),
         )
 
-    def predict(self) -> Message:
-        return Message(self.index, "prediction", self.position.copy(), self.filter.predict())
+    def predict(self, t: int, accel_var: float) -> Message:
+        """Section V-A's prediction, announced with position, aim and the coasted lost track."""
+        coasted = self.coasted_track(accel_var)
+        return Message(self.index, "prediction", t, position=self.position.copy(), estimate=self.filter.predict(),
+                       aim=self.aim.copy(), coasted=None if coasted is None else coasted[0])
 
-    def update(self, Z: np.ndarray, point: np.ndarray, level_w: float) -> Message:
+    def update(self, t: int, Z: np.ndarray, point: np.ndarray, level_w: float, prior_existence: float) -> Message:
         est = self.filter.update(Z, self.position, point, level_w)
-        return Message(self.index, "posterior", self.position.copy(), est)
+        return Message(self.index, "posterior", t, position=self.position.copy(), estimate=est,
+                       prior_existence=prior_existence)

@@ -42,11 +42,12 @@ class Components:
     plan: PlanSettings
     team: TeamSettings
 
-    def seed_tree(self) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]]]:
-        """One root seed -> the truth's stream and three streams per agent (filter, sensor, plan)."""
+    def seed_tree(self) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]], np.random.SeedSequence]:
+        """One root seed -> the truth's stream, three streams per agent (filter, sensor, plan) and
+        the message exchange's stream (losses)."""
         root = np.random.SeedSequence(self.seed)
-        truth_seed, agents_seed = root.spawn(2)
-        return truth_seed, [s.spawn(3) for s in agents_seed.spawn(self.n_agents)]
+        truth_seed, agents_seed, comms_seed = root.spawn(3)
+        return truth_seed, [s.spawn(3) for s in agents_seed.spawn(self.n_agents)], comms_seed
 
 
 def build(s: Scenario) -> Components:
@@ -73,5 +74,7 @@ def build(s: Scenario) -> Components:
         team=TeamSettings(
             existence_rule=s.fusion.existence, feedback=s.fusion.feedback,
             searching=c.fallback == "search", accel_var=s.filter_accel_var,
+            loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps),
+            failures=tuple((f.agent, f.step, f.mode) for f in s.comms.failures),
         ),
     )

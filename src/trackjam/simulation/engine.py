@@ -14,7 +14,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackjam.config import Scenario
-from trackjam.control.planning import Plan, plan_step
 from trackjam.estimation.fusion import CONFIRM
 from trackjam.metrics.ospa import ospa
 from trackjam.metrics.summary import summarise
@@ -72,11 +71,11 @@ class Simulation:
     def reset(self) -> None:
         """Back to t = 0 with fresh random streams from the scenario's seed."""
         c, s = self.c, self.scenario
-        truth_seed, agent_seeds = c.seed_tree()
+        truth_seed, agent_seeds, comms_seed = c.seed_tree()
         self.truth = TruthTarget(s, np.random.default_rng(truth_seed))
         aim = c.initial_aim if c.initial_aim is not None else self.truth.first_state[:3]
         agents = [Agent.create(j, s, u, aim, agent_seeds[j]) for j, u in enumerate(c.initial_positions)]
-        self.team = Team(agents, c.team)
+        self.team = Team(agents, c.team, np.random.default_rng(comms_seed))
         self.log = RunLog(n_agents=len(agents))
         self.t = 0
 
@@ -91,54 +90,46 @@ class Simulation:
         t0 = time.perf_counter()
         self.t = t = self.t + 1
         truth.step(t)
-        team.predict()
-        x_bar = team.planning_aims()[0]  # every agent received every prediction: the aims agree
+        team.predict(t)
+        decisions, solve_s = team.decide(c.displacements, c.antenna, c.low, c.high, c.plan, actions)
         prev = team.positions
-        plan = self._plan(x_bar, actions)
-        if plan.aim is not None:
-            team.steer(plan.aim)
-        team.move(c.displacements[plan.moves])
-        tx = self._transmit(plan)
+        team.apply(decisions, c.displacements)
+        levels = np.array([d.level for d in decisions], dtype=np.int64)
+        tx = self._transmit(levels)
         truth.apply_jamming(t, float(tx.to_target_w.sum()))
         scans = self._scans(tx)
         posteriors = team.update([Z for Z, _ in scans], tx.points, tx.level_w)
         fused = team.fuse(posteriors)
-        est = fused.mean[:3] if (fused.existence > CONFIRM and fused.mean is not None) else None
+        report = next((d for d in decisions if d.mode != "down"), decisions[0])
+        existence = np.nan if fused is None else fused.existence
+        est = fused.mean[:3] if (fused is not None and fused.existence > CONFIRM and fused.mean is not None) else None
         truth_set = truth.position if truth.detectable else None
         err = ospa(truth_set, est, c=c.ospa_cutoff, p=c.ospa_order)
         record = StepRecord(
             t=t,
             step=dict(
                 t=t, target_exists=truth.exists, target_detectable=truth.detectable,
-                truth=truth.position, existence=fused.existence, estimate=est, ospa=err, aim=x_bar,
-                mode=plan.mode, objective=plan.objective, target_received_w=float(tx.to_target_w.sum()),
-                solve_s=plan.solve_s, step_s=time.perf_counter() - t0,
+                truth=truth.position, existence=existence, estimate=est, ospa=err, aim=report.x_bar,
+                mode=report.mode, objective=report.objective, target_received_w=float(tx.to_target_w.sum()),
+                solve_s=solve_s, step_s=time.perf_counter() - t0,
             ),
             agents=dict(
-                t=t, prev=prev, pos=team.positions, level_index=np.asarray(plan.levels), power_w=tx.level_w,
+                t=t, prev=prev, pos=team.positions, level_index=levels, power_w=tx.level_w,
                 point=tx.points, p_d=tx.p_d, detected=np.array([bool(f.any()) for _, f in scans]),
                 n_measurements=np.array([len(Z) for Z, _ in scans]),
-                existence=np.array([m.estimate.existence for m in posteriors]),
+                existence=np.array([np.nan if m is None else m.estimate.existence for m in posteriors]),
                 interference_w=tx.interference_w, jammed=tx.interference_w >= c.antenna.delta_w,
-                to_target_w=tx.to_target_w,
+                to_target_w=tx.to_target_w, mode=np.array([d.mode for d in decisions]),
+                heard=np.array([d.heard for d in decisions], dtype=np.int64),
             ),
             scans=scans,
         )
         self.log.add(record)
         return record
 
-    def _plan(self, x_bar: np.ndarray | None, actions) -> Plan:
-        team, c = self.team, self.c
-        if actions is not None:
-            moves, levels = (np.asarray(a, dtype=np.int64) for a in actions)
-            return Plan("external", x_bar, moves, levels, np.nan, 0.0)
-        search_at = team.search_points(c.low, c.high)[0] if x_bar is None else None
-        return plan_step(team.positions, x_bar, search_at, team.aims, c.displacements, c.antenna,
-                         c.low, c.high, c.plan, [a.plan_rng for a in team.agents])
-
-    def _transmit(self, plan: Plan) -> Transmission:
+    def _transmit(self, levels: np.ndarray) -> Transmission:
         """Antennas point at the true target (`pointing: truth`, the paper) or at the aim, and
-        transmit the planned levels; occlusion hides the target from detection, while the
+        transmit the decided levels; occlusion hides the target from detection, while the
         jamming power still reaches it."""
         c, truth, team = self.c, self.truth, self.team
         n = len(team.agents)
@@ -148,7 +139,7 @@ class Simulation:
             points = np.repeat(x_true[None, :], n, axis=0)
         else:
             points = team.aims
-        level_w = c.antenna.levels_w[np.asarray(plan.levels, dtype=np.int64)]
+        level_w = c.antenna.levels_w[levels]
         interference = interference_matrix(positions, points, level_w, c.antenna).sum(axis=1)
         p_d, to_target = np.zeros(n), np.zeros(n)
         if truth.exists:
@@ -158,12 +149,15 @@ class Simulation:
         return Transmission(points, level_w, interference, to_target, p_d)
 
     def _scans(self, tx: Transmission) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Each agent's scan (Eqs. 6-8): a detection with probability p_D, plus clutter."""
+        """Each working agent's scan (Eqs. 6-8): a detection with probability p_D, plus clutter;
+        an agent that broke down receives nothing."""
         c, truth = self.c, self.truth
         target = truth.position if truth.detectable else None
+        working = set(self.team.working())
         return [
             sample_scan(a.sensor_rng, target, a.position, float(tx.p_d[j]), c.noise_std, c.clutter_rate,
                         c.antenna.max_range)
+            if j in working else (np.zeros((0, 3)), np.zeros(0, dtype=bool))
             for j, a in enumerate(self.team.agents)
         ]
 

@@ -40,7 +40,7 @@ class RunLog:
         self.steps.append(row)
 
     def add_agents(self, *, t, prev, pos, level_index, power_w, point, p_d, detected, n_measurements,
-                   existence, interference_w, jammed, to_target_w) -> None:
+                   existence, interference_w, jammed, to_target_w, mode, heard) -> None:
         cols = {
             "t": np.full(self.n, t, dtype=np.int64),
             "agent": np.arange(self.n, dtype=np.int64),
@@ -56,6 +56,8 @@ class RunLog:
             "interference_w": np.asarray(interference_w, dtype=float),
             "jammed": np.asarray(jammed, dtype=bool),
             "to_target_w": np.asarray(to_target_w, dtype=float),
+            "mode": np.asarray(mode, dtype=str),
+            "heard": np.asarray(heard, dtype=np.int64),
         }
         for k, v in cols.items():
             self.agents.setdefault(k, []).append(np.array(v, copy=True))

@@ -1,47 +1,114 @@
-"""The team: its agents and the exchange of messages between them (the paper's Fig. 2).
+"""The team: agents that each decide from what they hold, and the exchange between them.
 
-A step's three rounds of messages: positions and predicted estimates (from which each agent
-forms x_bar), then posterior estimates, which each agent fuses (covariance intersection) and
-feeds back into its own filter.
+A step has three rounds of messages (the paper's Fig. 2 and Section V-D):
+
+1. *predictions*: every working agent predicts and announces its position, aim, predicted
+   estimate and its memory of the lost track; each agent forms its own x_bar (Eq. 12) from the
+   predictions of this step it received, its own included;
+2. *plans*: each agent solves the joint problem over the teammates it heard from this step
+   (:mod:`trackjam.control.distributed`), announces its plan, and applies its part of the best
+   plan it received;
+3. *posteriors*: each agent updates on its own scan, announces its posterior, fuses the
+   posteriors of this step it received (covariance intersection) and feeds the result back
+   into its own filter.
+
+Faults (ours, ``comms``): a message to another agent is lost with probability ``loss`` and
+arrives ``delay_steps`` late; an agent can lose its publisher, its whole channel, or break down.
+An agent never plans with a teammate it did not hear from this step as if it were fresh: such a
+teammate is left out of the joint plan and only *guarded* at its last known position (a
+receiver that Eq. (13) protects, with no moves and no say in Eq. (12)'s Xi). With every message
+delivered, every agent holds the same information and the team acts as one.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from trackjam.control.planning import planning_aim, search_point
+from trackjam.control.distributed import Proposal, adopt, own_searches
+from trackjam.control.fallback import fallback_levels
+from trackjam.control.planning import PlanSettings, planning_aim, search_point
+from trackjam.control.problem import build_problem
 from trackjam.estimation.fusion import FusedEstimate, fuse
+from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.agent import Agent, Message
 
 
 @dataclass(frozen=True)
 class TeamSettings:
-    """The fusion and fall-back options the team's rounds read."""
+    """The fusion, fall-back and comms options the team's rounds read."""
 
     existence_rule: str  # fusion.existence: "mean" | "evidence"
     feedback: bool  # fusion.feedback
     searching: bool  # control.fallback == "search"
     accel_var: float  # the filters' Sigma_v scale, used to coast a lost track
+    loss: float = 0.0  # comms.loss
+    delay_steps: int = 0  # comms.delay_steps
+    failures: tuple[tuple[int, int, str], ...] = ()  # comms.failures as (agent, step, mode)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What one agent does in a step."""
+
+    mode: str  # "track" | "search" | "hover" | "external" | "down"
+    move: int
+    level: int
+    aim: np.ndarray | None  # where it steers its antenna; None: keeps its aim
+    x_bar: np.ndarray | None  # its planning aim of Eq. (12)
+    objective: float  # Xi of the adopted plan (NaN unless tracking)
+    heard: int  # agents whose predictions of this step it planned with, itself included
 
 
 class Exchange:
-    """All-to-all broadcast: every agent receives every message of a round, its own included,
-    in sender order."""
+    """Delivers each round's messages: to the sender at once, to every other agent unless the
+    message is lost or a failure stops it, ``delay_steps`` later."""
 
-    def broadcast(self, messages: list[Message]) -> list[list[Message]]:
-        """One inbox per agent."""
-        ordered = sorted(messages, key=lambda m: m.sender)
-        return [ordered for _ in messages]
+    def __init__(self, n: int, settings: TeamSettings, rng: np.random.Generator) -> None:
+        self.n, self.s, self.rng = n, settings, rng
+        self.pending: list[tuple[int, str, int, Message]] = []  # (arrival step, kind, receiver, message)
+
+    def failed(self, agent: int, t: int, modes: tuple[str, ...]) -> bool:
+        return any(a == agent and t >= step and mode in modes for a, step, mode in self.s.failures)
+
+    def down(self, agent: int, t: int) -> bool:
+        return self.failed(agent, t, ("breakdown",))
+
+    def send(self, t: int, kind: str, messages: list[Message]) -> list[list[Message]]:
+        """One round: every agent's inbox of the messages of ``kind`` arriving at step ``t``."""
+        lost = self.rng.random((self.n, self.n)) < self.s.loss  # drawn every round: one stream
+        inboxes: list[list[Message]] = [[] for _ in range(self.n)]
+        for m in messages:
+            inboxes[m.sender].append(m)
+            if self.failed(m.sender, t, ("publisher", "channel", "breakdown")):
+                continue
+            for r in range(self.n):
+                if r != m.sender and not lost[m.sender, r]:
+                    self.pending.append((t + self.s.delay_steps, kind, r, m))
+        keep = []
+        for arrival, k, r, m in self.pending:
+            if arrival == t and k == kind and r != m.sender:
+                if not self.failed(r, t, ("channel", "breakdown")):
+                    inboxes[r].append(m)
+            elif arrival > t:
+                keep.append((arrival, k, r, m))
+        self.pending = keep
+        return [sorted(box, key=lambda m: (m.sender, m.stamp)) for box in inboxes]
 
 
 class Team:
-    def __init__(self, agents: list[Agent], settings: TeamSettings, exchange: Exchange | None = None) -> None:
+    def __init__(self, agents: list[Agent], settings: TeamSettings, rng: np.random.Generator) -> None:
         self.agents = agents
         self.settings = settings
-        self.exchange = exchange or Exchange()
-        self.predicted: list[list[Message]] = [[] for _ in agents]  # each agent's inbox
+        self.exchange = Exchange(len(agents), settings, rng)
+        self.inbox: list[list[Message]] = [[] for _ in agents]  # this step's predictions received
+        # latest prediction from each teammate; at launch every agent knows where the team starts
+        briefing = {a.index: Message(a.index, "prediction", 0, position=a.position.copy(), aim=a.aim.copy())
+                    for a in agents}
+        self.known: list[dict[int, Message]] = [dict(briefing) for _ in agents]
+        self.t = 0
 
     @property
     def positions(self) -> np.ndarray:
@@ -51,47 +118,124 @@ class Team:
     def aims(self) -> np.ndarray:
         return np.array([a.aim for a in self.agents])
 
-    def predict(self) -> None:
-        """Round 1: every agent predicts (Section V-A) and broadcasts position and prediction."""
-        self.predicted = self.exchange.broadcast([a.predict() for a in self.agents])
+    def working(self, t: int | None = None) -> list[int]:
+        t = self.t if t is None else t
+        return [a.index for a in self.agents if not self.exchange.down(a.index, t)]
 
-    def planning_aims(self) -> list[np.ndarray | None]:
-        """Each agent's x_bar (Eq. 12) from the predictions it received."""
-        return [planning_aim([m.estimate for m in inbox]) for inbox in self.predicted]
-
-    def search_points(self, low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
-        """Where each agent would search: the team's lost track coasted, as the agent remembers it."""
+    def predict(self, t: int) -> None:
+        """Round 1: working agents predict (Section V-A) and announce."""
+        self.t = t
         q = self.settings.accel_var
-        coasted = [c[0] for c in (a.coasted_track(q) for a in self.agents) if c is not None]
-        return [
-            search_point(coasted, [m.estimate for m in inbox], self.aims, low, high)
-            for inbox in self.predicted
-        ]
+        sent = [self.agents[j].predict(t, q) for j in self.working()]
+        inboxes = self.exchange.send(t, "prediction", sent)
+        for j, box in enumerate(inboxes):
+            for m in box:
+                if m.sender not in self.known[j] or self.known[j][m.sender].stamp <= m.stamp:
+                    self.known[j][m.sender] = m
+            self.inbox[j] = [m for m in box if m.stamp == t]
 
-    def steer(self, aim: np.ndarray) -> None:
-        for a in self.agents:
-            a.aim = np.array(aim, dtype=float)
+    def fresh(self, j: int) -> list[Message]:
+        """The predictions of this step agent j holds, its own included, in sender order."""
+        return self.inbox[j]
 
-    def move(self, displacements: np.ndarray) -> None:
-        for a, d in zip(self.agents, displacements):
-            a.position = a.position + d
+    def decide(self, displacements: np.ndarray, ant: AntennaModel, low: np.ndarray, high: np.ndarray,
+               plan: PlanSettings, actions=None) -> tuple[list[Decision], float]:
+        """Round 2: every working agent plans and proposes; each applies the best plan it
+        received. ``actions`` (moves, levels) overrides the plans. Returns the decisions and the
+        wall time of planning."""
+        t0 = time.perf_counter()
+        working = self.working()
+        x_bars = {j: planning_aim([m.estimate for m in self.fresh(j)]) for j in working}
+        decisions: list[Decision | None] = [None] * len(self.agents)
+        for j in range(len(self.agents)):
+            if j not in working:
+                decisions[j] = Decision("down", 0, 0, None, None, np.nan, 0)
+        if actions is not None:
+            moves, levels = (np.asarray(a, dtype=np.int64) for a in actions)
+            for j in working:
+                decisions[j] = Decision("external", int(moves[j]), int(levels[j]), x_bars[j], x_bars[j], np.nan,
+                                        len(self.fresh(j)))
+            return decisions, time.perf_counter() - t0
+        proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan)
+        inboxes = self.exchange.send(self.t, "plan", [Message(p.sender, "plan", self.t, plan=p) for p in proposals])
+        for j in working:
+            best = adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
+            move, level = best.control_of(j)
+            objective = best.objective if best.mode == "track" else np.nan
+            decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)))
+        return decisions, time.perf_counter() - t0
 
-    def update(self, scans: list[np.ndarray], points: np.ndarray, level_w: np.ndarray) -> list[Message]:
-        """Each agent updates its filter on its own scan (Section V-A)."""
-        return [a.update(Z, points[j], float(level_w[j])) for j, (a, Z) in enumerate(zip(self.agents, scans))]
+    def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings) -> list[Proposal]:
+        """Each working agent's plan over the teammates it heard from this step. Agents holding
+        the same problem solve it together (deterministic solvers once; GRASP one search each)."""
+        groups: dict[tuple, list[int]] = {}
+        problems = {}
+        for j in working:
+            heard = self.fresh(j)
+            rows = tuple(m.sender for m in heard)
+            guards = tuple(sorted(k for k in self.known[j] if k not in rows))
+            x_bar = x_bars[j]
+            if x_bar is None and not plan.fallback == "search":
+                aims = np.array([m.aim for m in heard])
+                positions = np.array([m.position for m in heard])
+                levels = fallback_levels(positions, aims, ant, plan.constraints)
+                problems[("hover", j)] = Proposal(j, rows, "hover", None, np.zeros(len(rows), dtype=np.int64),
+                                                  np.asarray(levels, dtype=np.int64), np.nan)
+                continue
+            aim = x_bar if x_bar is not None else search_point(
+                [m.coasted for m in heard if m.coasted is not None], [m.estimate for m in heard],
+                np.array([m.aim for m in heard]), low, high)
+            key = (rows, guards, aim.tobytes(), tuple(m.position.tobytes() for m in heard),
+                   tuple(self.known[j][k].position.tobytes() for k in guards), x_bar is None)
+            groups.setdefault(key, []).append(j)
+        out = [p for p in problems.values()]
+        for key, members in groups.items():
+            rows, guards, _, _, _, searching = key
+            j0 = members[0]
+            heard = self.fresh(j0)
+            aim = np.frombuffer(key[2])
+            positions = np.array([m.position for m in heard] + [self.known[j0][k].position for k in guards])
+            problem = build_problem(positions, aim, displacements, ant, low, high,
+                                    min(plan.at_least, len(rows)), plan.constraints)
+            if guards:
+                problem = _guarded(problem, len(rows))
+            found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
+                                 [self.agents[j].plan_rng for j in members], plan.samples, plan.iterations,
+                                 plan.neighbours, plan.threads)
+            mode = "search" if searching else "track"
+            for j, (sol, value) in zip(members, found):
+                n = len(rows)
+                out.append(Proposal(j, rows, mode, aim.copy(), sol.move[:n], sol.level[:n], value))
+        return sorted(out, key=lambda p: p.sender)
 
-    def fuse(self, posteriors: list[Message]) -> FusedEstimate:
-        """Round 3: posteriors are broadcast; each agent fuses what it received, remembers the
-        team's track and, with ``fusion.feedback``, reseeds its filter from the fused estimate
-        (a searching team from its lost track coasted). Returns agent 0's fusion, the team's
-        report."""
+    def apply(self, decisions: list[Decision], displacements: np.ndarray) -> None:
+        for a, d in zip(self.agents, decisions):
+            if d.aim is not None:
+                a.aim = np.array(d.aim, dtype=float)
+            a.position = a.position + displacements[d.move]
+
+    def update(self, scans: list[np.ndarray], points: np.ndarray, level_w: np.ndarray) -> list[Message | None]:
+        """Each working agent updates its filter on its own scan (Section V-A)."""
+        out: list[Message | None] = [None] * len(self.agents)
+        for j in self.working():
+            prior = next(m for m in self.inbox[j] if m.sender == j).estimate.existence
+            out[j] = self.agents[j].update(self.t, scans[j], points[j], float(level_w[j]), prior)
+        return out
+
+    def fuse(self, posteriors: list[Message | None]) -> FusedEstimate | None:
+        """Round 3: posteriors are announced; each working agent fuses the ones of this step it
+        received, remembers the team's track and, with ``fusion.feedback``, reseeds its filter
+        (a searching agent from its lost track coasted). Returns the team's report: the fusion
+        of the lowest-index working agent (None when every agent is down)."""
         s = self.settings
-        inboxes = self.exchange.broadcast(posteriors)
-        fused_by = []
-        for a, inbox, predicted in zip(self.agents, inboxes, self.predicted):
-            fused = fuse([m.estimate for m in inbox], predicted=[m.estimate.existence for m in predicted],
+        inboxes = self.exchange.send(self.t, "posterior", [m for m in posteriors if m is not None])
+        report = None
+        for j in self.working():
+            a = self.agents[j]
+            box = [m for m in inboxes[j] if m.stamp == self.t]
+            fused = fuse([m.estimate for m in box], predicted=[m.prior_existence for m in box],
                          rule=s.existence_rule)
-            fused_by.append(fused)
+            report = fused if report is None else report
             a.remember(fused.existence, fused.mean, fused.cov)
             if not s.feedback:
                 continue
@@ -100,4 +244,14 @@ class Team:
                 a.filter.reset_to(fused.existence, mean, cov)
             else:
                 a.filter.reset_to(fused.existence, fused.mean, fused.cov)
-        return fused_by[0]
+        return report
+
+
+def _guarded(problem, n_planned: int):
+    """The problem with its rows past ``n_planned`` turned into guarded teammates: hover only,
+    no detection (they add nothing to Xi), still receivers of Eq. (13)."""
+    n_cand = problem.n_cand.copy()
+    n_cand[n_planned:] = 1
+    p_d = problem.p_d.copy()
+    p_d[n_planned:] = 0.0
+    return replace(problem, n_cand=n_cand, p_d=p_d)

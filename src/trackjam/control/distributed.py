@@ -1,0 +1,80 @@
+"""The distributed decision of Section V-D: every agent searches the joint problem it knows,
+announces its best plan, and every agent adopts the best plan it received.
+
+Each agent's own search: ``grasp`` with the agent's own random stream and the agent as the
+searcher (``me``), as in the paper; ``exact`` and ``greedy`` are deterministic, so agents
+holding the same problem reach the same plan (it is computed once per distinct problem).
+The adoption rule every agent applies to the same messages: the highest announced objective,
+ties to the lowest sender; a plan without a value (the hover fall-back) ranks below any value.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from trackjam.control.grasp import kernel_grasp_search, neighbour_lists
+from trackjam.control.objective import to_solution
+from trackjam.control.problem import Problem, Solution
+from trackjam.control.solve import solve
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """A plan one agent announces: controls for the agents it planned for."""
+
+    sender: int
+    agents: tuple[int, ...]  # team indices the plan covers, in problem-row order
+    mode: str  # "track" | "search" | "hover"
+    aim: np.ndarray | None  # where the plan's cones aim (x_bar or the search point); None: each its own
+    moves: np.ndarray  # (len(agents),) displacement indices
+    levels: np.ndarray  # (len(agents),) level indices
+    objective: float  # Xi of the plan at its aim; NaN when it has none
+
+    def control_of(self, agent: int) -> tuple[int, int]:
+        k = self.agents.index(agent)
+        return int(self.moves[k]), int(self.levels[k])
+
+
+def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Sequence[np.random.Generator],
+                 samples: int, iterations: int, neighbours: int, threads: int = 1
+                 ) -> list[tuple[Solution, float]]:
+    """The plan each searching agent (problem row ``rows[k]``, stream ``rngs[k]``) finds, with
+    the value it announces (GRASP: its search's own value, which ranks the plans as the paper's
+    all-apply-the-best does)."""
+    if solver != "grasp":
+        sol = solve(problem, solver, list(rngs))
+        return [(sol, sol.objective) for _ in rows]
+    neigh, n_neigh = neighbour_lists(problem, neighbours)
+    N = problem.n_agents
+    cands = np.zeros((len(rows), N), dtype=np.int64)
+    levels = np.zeros((len(rows), N), dtype=np.int64)
+
+    values = np.empty(len(rows))
+
+    def search(k: int) -> None:
+        values[k] = kernel_grasp_search(
+            rngs[k], int(rows[k]), problem.p_d, problem.gain, problem.levels_w, problem.delta_w,
+            problem.at_least, problem.constraints, problem.n_cand, neigh, n_neigh,
+            int(samples), int(iterations), cands[k], levels[k],
+        )
+
+    if threads > 1 and len(rows) > 1:
+        with ThreadPoolExecutor(max_workers=min(threads, len(rows))) as pool:
+            list(pool.map(search, range(len(rows))))
+    else:
+        for k in range(len(rows)):
+            search(k)
+    return [(to_solution(problem, cands[k], levels[k]), float(values[k])) for k in range(len(rows))]
+
+
+def adopt(proposals: Sequence[Proposal], agent: int) -> Proposal | None:
+    """The plan ``agent`` applies: the best announced plan that covers it (highest objective,
+    ties to the lowest sender; NaN ranks lowest)."""
+    covering = [p for p in proposals if agent in p.agents]
+    if not covering:
+        return None
+    return min(covering, key=lambda p: (-(p.objective if np.isfinite(p.objective) else -np.inf), p.sender))

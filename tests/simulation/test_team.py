@@ -1,0 +1,127 @@
+"""A team distributed in fact: each agent decides from the messages it received, and the seeded
+fault model (loss, delay, failures) changes what it knows, never what it pretends to know."""
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.control.exact import enumerate_optimum
+from trackjam.control.problem import build_problem
+from trackjam.control.solve import solve
+from trackjam.radio.antenna import received_power
+from trackjam.simulation.agent import Message
+from trackjam.simulation.loop import simulate
+from trackjam.simulation.team import Exchange, TeamSettings, _guarded
+from trackjam.world.moves import displacement_set
+
+FAST = ["control.solver=exact", "steps=8", "filter.particles=500", "filter.birth_particles=100"]
+
+
+def run(*extra):
+    return simulate(load_scenario("paper-fig3", FAST + list(extra)))
+
+
+def by_agent(r, col, n=3):
+    return r.agents[col].reshape(-1, n)
+
+
+def settings(**kw):
+    return TeamSettings(existence_rule="mean", feedback=True, searching=False, accel_var=0.5, **kw)
+
+
+def test_every_agent_hears_the_whole_team_when_nothing_is_lost():
+    r = run()
+    assert np.all(r.agents["heard"] == 3)
+
+
+def test_with_every_message_lost_each_agent_plans_alone():
+    r = run("comms.loss=1")
+    assert np.all(r.agents["heard"] == 1)
+    # the team still acts: agents move and transmit on their own estimates
+    assert np.any(r.agents["level_index"] > 0)
+
+
+def test_a_delay_makes_every_teammate_stale():
+    r = run("comms.delay_steps=1")
+    assert np.all(r.agents["heard"] == 1)
+
+
+def test_a_failed_publisher_is_heard_by_nobody_but_still_hears():
+    r = run('comms.failures=[{"agent": 1, "step": 4, "mode": "publisher"}]')
+    heard, t = by_agent(r, "heard"), r.steps["t"]
+    assert np.all(heard[t < 4] == 3)
+    assert np.all(heard[t >= 4, 0] == 2) and np.all(heard[t >= 4, 2] == 2)
+    assert np.all(heard[t >= 4, 1] == 3)
+
+
+def test_a_failed_channel_cuts_both_ways():
+    r = run('comms.failures=[{"agent": 2, "step": 3, "mode": "channel"}]')
+    heard, t = by_agent(r, "heard"), r.steps["t"]
+    assert np.all(heard[t >= 3, 2] == 1)
+    assert np.all(heard[t >= 3, :2] == 2)
+
+
+def test_a_broken_down_agent_hovers_silent_and_dark():
+    r = run('comms.failures=[{"agent": 0, "step": 5, "mode": "breakdown"}]')
+    t = r.steps["t"]
+    mode, power = by_agent(r, "mode"), by_agent(r, "power_w")
+    x = np.stack([by_agent(r, k)[:, 0] for k in "xyz"], axis=1)
+    assert np.all(mode[t >= 5, 0] == "down") and np.all(power[t >= 5, 0] == 0)
+    assert np.allclose(x[t >= 5], x[t == 5])
+    assert np.all(np.isnan(by_agent(r, "existence")[t >= 5, 0]))
+    assert np.all(by_agent(r, "measurements")[t >= 5, 0] == 0)
+    assert np.all(by_agent(r, "heard")[t >= 5, 1:] == 2)
+    # the team's report comes from the lowest working agent and stays a probability
+    assert np.all((r.steps["existence"] >= 0) & (r.steps["existence"] <= 1))
+
+
+def test_losses_are_seeded():
+    a, b = run("comms.loss=0.4"), run("comms.loss=0.4")
+    for k in ("x", "level_index", "heard", "existence"):
+        assert np.array_equal(a.agents[k], b.agents[k], equal_nan=True)
+
+
+def test_each_message_is_lost_with_the_configured_probability():
+    n, rounds, p = 4, 3000, 0.3
+    ex = Exchange(n, settings(loss=p), np.random.default_rng(0))
+    got = 0
+    for t in range(1, rounds + 1):
+        boxes = ex.send(t, "prediction", [Message(j, "prediction", t) for j in range(n)])
+        got += sum(len(b) - 1 for b in boxes)  # own message always arrives
+    sent = rounds * n * (n - 1)
+    share = got / sent
+    half_width = 4 * np.sqrt(p * (1 - p) / sent)
+    assert abs(share - (1 - p)) < half_width
+
+
+def test_delayed_messages_arrive_exactly_late():
+    ex = Exchange(2, settings(delay_steps=2), np.random.default_rng(0))
+    stamps = []
+    for t in range(1, 6):
+        boxes = ex.send(t, "posterior", [Message(0, "posterior", t), Message(1, "posterior", t)])
+        stamps.append([m.stamp for m in boxes[1] if m.sender == 0])
+    assert stamps == [[], [], [1], [2], [3]]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_guarded_teammate_is_protected_by_the_exact_plan(seed):
+    """A teammate heard from only long ago is a receiver with no moves and no say in Xi: the
+    exact plan is the brute-force optimum of that problem and never jams it."""
+    s = load_scenario("paper-fig3")
+    from trackjam.radio.antenna import AntennaModel
+
+    ant = AntennaModel.from_scenario(s)
+    rng = np.random.default_rng(seed)
+    aim = rng.uniform(30, 70, 3)
+    planned = aim + rng.normal(0, 8, (2, 3))
+    guard = aim + rng.normal(0, 6, (1, 3))
+    D = displacement_set([3.0], 4, 8)
+    problem = _guarded(build_problem(np.vstack([planned, guard]), aim, D, ant, s.area.low, s.area.high, 1, True), 2)
+    sol = solve(problem, "exact", [])
+    best_value, _, _ = enumerate_optimum(problem)
+    assert sol.objective == pytest.approx(best_value)
+    assert sol.move[2] == 0
+    moved = planned + D[sol.move[:2]]
+    levels_w = ant.levels_w[sol.level]
+    at_guard = received_power(guard[0], moved, np.repeat(aim[None], 2, 0), levels_w[:2], ant).sum()
+    assert at_guard < ant.delta_w
