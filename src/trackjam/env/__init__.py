@@ -1,0 +1,25 @@
+"""A PettingZoo environment for learning controllers of the pursuer team (needs the ``env``
+extra: ``pip install "trackjam[env]"``)."""
+
+from __future__ import annotations
+
+try:
+    import gymnasium  # noqa: F401
+    import pettingzoo  # noqa: F401
+except ImportError as err:  # pragma: no cover - depends on the installation
+    raise ImportError(f"trackjam.env needs the env extra: pip install \"trackjam[env]\" ({err})") from None
+
+from trackjam.config import Scenario
+from trackjam.env.observation import observation_layout
+from trackjam.env.parallel import Planned, TrackjamParallelEnv
+from trackjam.env.policies import random_policy, rollout, solver_policy
+
+__all__ = ["Planned", "TrackjamParallelEnv", "observation_layout", "parallel_env", "random_policy", "rollout",
+           "solver_policy"]
+
+
+def parallel_env(scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
+                 replay_path: str = "replay.html") -> TrackjamParallelEnv:
+    """The team as a PettingZoo ``ParallelEnv`` on ``scenario`` (a :class:`Scenario`, e.g. from
+    :func:`trackjam.load_scenario`); ``jam_penalty`` is lambda of the reward."""
+    return TrackjamParallelEnv(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path)

@@ -1,0 +1,66 @@
+"""What an agent of the learning environment observes, as one flat float32 vector.
+
+Layout for agent j of a team of N (``observation_layout`` names every entry):
+
+- ``own.x/y/z``: its position u_t after the step's move [m];
+- ``own.est.x/y/z/vx/vy/vz``, ``own.est.e``: the estimate its filter holds after the step (with
+  ``fusion.feedback``, the fused estimate fed back) [m, m/s] and its existence probability;
+- for each teammate k != j, in index order, what j received from k in the step's first round
+  (the paper's Fig. 2): ``mateK.received`` (1 if a message arrived this step, else 0 and the
+  rest of the block is 0), ``mateK.x/y/z`` (k's position as announced, before the move) [m],
+  ``mateK.pred.x/y/z/vx/vy/vz`` and ``mateK.pred.e``, k's predicted estimate e_{t|t-1};
+- ``time``: t / steps, the share of the episode elapsed.
+
+N agents observe 11 N numbers each.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+STATE = ("x", "y", "z", "vx", "vy", "vz")
+MATE_BLOCK = 11  # received flag, position (3), predicted state (6), predicted existence
+
+
+def observation_layout(n_agents: int) -> list[str]:
+    """The name of every entry of an agent's observation (the same for every agent)."""
+    names = ["own.x", "own.y", "own.z"] + [f"own.est.{s}" for s in STATE] + ["own.est.e"]
+    for k in range(1, n_agents):
+        names += [f"mate{k}.received", f"mate{k}.x", f"mate{k}.y", f"mate{k}.z"]
+        names += [f"mate{k}.pred.{s}" for s in STATE] + [f"mate{k}.pred.e"]
+    return names + ["time"]
+
+
+def observation_bounds(n_agents: int, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Box bounds of the layout: the agent's own position lies in the area (an inadmissible move
+    is replaced by hovering); probabilities, flags and time in [0, 1]; estimates are unbounded
+    (a filter's mean may stray past a wall with ``filter.walls: none``)."""
+    names = observation_layout(n_agents)
+    lo = np.full(len(names), -np.inf, dtype=np.float32)
+    hi = np.full(len(names), np.inf, dtype=np.float32)
+    lo[:3], hi[:3] = low, high
+    for i, name in enumerate(names):
+        if name.endswith((".e", ".received")) or name == "time":
+            lo[i], hi[i] = 0.0, 1.0
+    return lo, hi
+
+
+def observe(j: int, position: np.ndarray, own, received: list, n_agents: int, fraction: float) -> np.ndarray:
+    """Agent j's observation. ``own`` is the Estimate its filter holds; ``received`` the
+    messages (sender, position, estimate) of the step's prediction round in j's inbox."""
+    obs = np.zeros(MATE_BLOCK * n_agents, dtype=np.float32)
+    obs[:3] = position
+    obs[3:9] = own.mean
+    obs[9] = own.existence
+    by_sender = {m.sender: m for m in received}
+    for slot, k in enumerate(k for k in range(n_agents) if k != j):
+        m = by_sender.get(k)
+        if m is None:
+            continue
+        base = 10 + slot * MATE_BLOCK
+        obs[base] = 1.0
+        obs[base + 1 : base + 4] = m.position
+        obs[base + 4 : base + 10] = m.estimate.mean
+        obs[base + 10] = m.estimate.existence
+    obs[-1] = fraction
+    return obs

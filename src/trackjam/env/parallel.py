@@ -1,0 +1,223 @@
+"""The PettingZoo ``ParallelEnv`` over the step-wise engine (:class:`trackjam.simulation.engine.Simulation`).
+
+Agents ``agent_0`` .. ``agent_{N-1}`` act together once per step. An action is
+``[move, level]``: an index into Eq. (3)'s displacement set (0 = hover) and an index into the
+transmit levels L (0 = the lowest, "off" in the paper). A move that would take an agent out of
+the area is not admissible (the model document): the agent hovers instead and its info says
+``hovered: True``. Observations: :mod:`trackjam.env.observation`; reward:
+:mod:`trackjam.env.reward`. An episode terminates when the target is downed (``target.response``)
+or has flown out of the area (``target.walls: leave``), and is truncated after ``steps``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from gymnasium import logger, spaces
+from pettingzoo import ParallelEnv
+
+from trackjam.config import Scenario
+from trackjam.control.solve import SOLVERS
+from trackjam.env.observation import observation_bounds, observe
+from trackjam.env.reward import team_reward
+from trackjam.simulation.engine import Simulation, StepRecord
+from trackjam.world.moves import admissible_moves
+
+RENDER_MODES = ("rgb_array", "replay")
+
+
+@dataclass(frozen=True)
+class Planned:
+    """The action of a solver policy: the engine's own planning decides, inside the step, after
+    the round of predictions, exactly where :func:`trackjam.simulate` decides. It lies outside
+    the action space; the info dict reports the move and level the solver chose."""
+
+    solver: str
+
+
+class TrackjamParallelEnv(ParallelEnv):
+    metadata = {"name": "trackjam_v0", "render_modes": list(RENDER_MODES), "render_fps": 1}
+
+    def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
+                 replay_path: str = "replay.html") -> None:
+        if not np.isfinite(jam_penalty) or jam_penalty < 0:
+            raise ValueError(f"jam_penalty: must be a finite number >= 0, got {jam_penalty!r}")
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode: {render_mode!r} is not one of {', '.join(RENDER_MODES)} (or None)")
+        self.scenario = scenario
+        self.jam_penalty = float(jam_penalty)
+        self.render_mode = render_mode
+        self.replay_path = replay_path
+        self.sim = Simulation(scenario)
+        self.possible_agents = [f"agent_{j}" for j in range(scenario.n_agents)]
+        self.agents: list[str] = []
+        self._index = {name: j for j, name in enumerate(self.possible_agents)}
+        c = self.sim.c
+        n_moves, n_levels = len(c.displacements), len(c.antenna.levels_w)
+        lo, hi = observation_bounds(scenario.n_agents, c.low, c.high)
+        self._action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
+        self._observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
+        self._seed: int | None = None
+        self._ended: str | None = "not started"
+
+    # -- spaces ----------------------------------------------------------------------------
+
+    def _agent(self, agent: str) -> int:
+        try:
+            return self._index[agent]
+        except (KeyError, TypeError):
+            raise ValueError(f"unknown agent {agent!r}; the agents are {', '.join(self.possible_agents)}") from None
+
+    def observation_space(self, agent: str) -> spaces.Box:
+        self._agent(agent)
+        return self._observation_spaces[agent]
+
+    def action_space(self, agent: str) -> spaces.MultiDiscrete:
+        self._agent(agent)
+        return self._action_spaces[agent]
+
+    # -- episode ---------------------------------------------------------------------------
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        """Start an episode on ``seed`` (same seed, same episode: it is the run of
+        :func:`trackjam.simulate` with that seed). Without one, the first episode takes the
+        scenario's seed and each later one the previous seed + 1. ``options`` is accepted for
+        the API and not read: the scenario says everything."""
+        if seed is None:
+            seed = self.scenario.seed if self._seed is None else self._seed + 1
+        elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"reset(seed={seed!r}): the seed must be an integer >= 0")
+        self._seed = int(seed)
+        self.sim = Simulation(self.scenario.model_copy(update={"seed": self._seed}))
+        self.agents = list(self.possible_agents)
+        self._ended = None
+        obs = self._observations(received=[[] for _ in self.possible_agents])
+        return obs, {a: {"t": 0, "seed": self._seed} for a in self.agents}
+
+    def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.agents:
+            raise RuntimeError(f"step() after the episode ended ({self._ended}); call reset()")
+        for name in actions:
+            self._agent(name)
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"no action for {missing[0]}: every agent acts at every step")
+        planned = [actions[a] for a in self.agents if isinstance(actions[a], Planned)]
+        if planned:
+            record, hovered = self._planned_step(planned), np.zeros(len(self.agents), dtype=bool)
+        else:
+            record, hovered = self._external_step(actions)
+        return self._outcome(record, hovered)
+
+    def _external_step(self, actions: dict) -> tuple[StepRecord, np.ndarray]:
+        c = self.sim.c
+        moves = np.zeros(len(self.possible_agents), dtype=np.int64)
+        levels = np.zeros(len(self.possible_agents), dtype=np.int64)
+        for name in self.agents:
+            j, space = self._index[name], self._action_spaces[name]
+            a = np.asarray(actions[name])
+            if a.shape != (2,) or a.dtype.kind not in "iu" or not space.contains(a.astype(space.dtype)):
+                raise ValueError(
+                    f"{name}: action {actions[name]!r} is outside the action space "
+                    f"MultiDiscrete({space.nvec.tolist()}) ([move, level] indices)"
+                )
+            moves[j], levels[j] = int(a[0]), int(a[1])
+        positions = self.sim.team.positions
+        hovered = np.array([
+            not admissible_moves(positions[j], c.displacements[moves[j] : moves[j] + 1], c.low, c.high)[0]
+            for j in range(len(moves))
+        ])
+        moves[hovered] = 0  # the model document: a move out of the area is not admissible
+        return self.sim.step((moves, levels)), hovered
+
+    def _planned_step(self, planned: list[Planned]) -> StepRecord:
+        solvers = {p.solver for p in planned}
+        if len(planned) != len(self.agents) or len(solvers) != 1:
+            raise ValueError("a solver plans for the whole team: give every agent the same Planned action")
+        solver = solvers.pop()
+        if solver not in SOLVERS:
+            raise ValueError(f"Planned: unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")
+        c = self.sim.c
+        if c.plan.solver != solver:  # the engine plans with the settings it was built with
+            self.sim.c = replace(c, plan=replace(c.plan, solver=solver))
+        return self.sim.step()
+
+    def _outcome(self, record: StepRecord, hovered: np.ndarray):
+        sim, c, s = self.sim, self.sim.c, self.scenario
+        ag = record.agents
+        reward = team_reward(ag["p_d"], ag["interference_w"], c.antenna.delta_w, s.control.at_least,
+                             self.jam_penalty)
+        truth = sim.truth
+        if truth.downed_at is not None:
+            end = f"target downed at step {truth.downed_at}"
+        elif truth.gone:
+            end = f"target left the area by step {record.t}"
+        else:
+            end = None
+        terminated = end is not None
+        truncated = not terminated and sim.done
+        if terminated or truncated:
+            self._ended = end or f"truncated after {s.steps} steps"
+        D = c.displacements
+        moves = np.argmin(np.linalg.norm((ag["pos"] - ag["prev"])[:, None, :] - D[None], axis=2), axis=1)
+        obs = self._observations(received=[_inbox(sim.team, j) for j in range(len(self.possible_agents))])
+        live = list(self.agents)
+        infos = {
+            a: {
+                "t": record.t, "move": int(moves[j]), "level": int(ag["level_index"][j]), "hovered": bool(hovered[j]),
+                "p_d": float(ag["p_d"][j]), "interference_w": float(ag["interference_w"][j]),
+                "jammed": bool(ag["jammed"][j]), "mode": record.step["mode"],
+                **({"end": self._ended} if (terminated or truncated) else {}),
+            }
+            for a, j in ((a, self._index[a]) for a in live)
+        }
+        if terminated or truncated:
+            self.agents = []
+        return (obs, {a: reward for a in live}, {a: terminated for a in live}, {a: truncated for a in live},
+                infos)
+
+    def _observations(self, received: list[list]) -> dict:
+        sim = self.sim
+        n = len(self.possible_agents)
+        fraction = sim.t / self.scenario.steps
+        return {
+            a: observe(j, sim.team.agents[j].position, sim.team.agents[j].filter.estimate(), received[j], n, fraction)
+            for a, j in ((a, self._index[a]) for a in self.possible_agents)
+        }
+
+    # -- rendering -------------------------------------------------------------------------
+
+    def render(self):
+        """``rgb_array``: the Fig. 3 panels of the episode so far as an (H, W, 3) uint8 array;
+        ``replay``: writes the interactive replay to ``replay_path`` and returns that path."""
+        if self.render_mode is None:
+            logger.warn("render() without a render_mode: pass render_mode='rgb_array' or 'replay'")
+            return None
+        if self.sim.t == 0:
+            raise RuntimeError("render(): nothing to draw before the first step")
+        res = self.sim.result()
+        if self.render_mode == "replay":
+            from trackjam.files import atomic_write
+            from trackjam.viz.replay import write_replay
+
+            return atomic_write(self.replay_path, lambda p: write_replay(res.steps, res.agents, res.scenario, p))
+        import tempfile
+        from pathlib import Path
+
+        import matplotlib.image
+
+        from trackjam.viz.figure import plot_run
+
+        with tempfile.TemporaryDirectory() as tmp:
+            png = plot_run(res.steps, res.agents, res.scenario, Path(tmp) / "run.png")
+            img = matplotlib.image.imread(png)
+        return np.round(img[..., :3] * 255).astype(np.uint8)
+
+    def close(self) -> None:
+        pass
+
+
+def _inbox(team, j: int) -> list:
+    """The prediction-round messages agent j received this step (its own included)."""
+    return team.predicted[j]

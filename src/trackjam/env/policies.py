@@ -1,0 +1,81 @@
+"""Policies for the learning environment and a helper that rolls them out on seeds.
+
+A policy is a function obs dict -> actions dict. ``solver_policy`` lets the engine's own
+planning decide (greedy, GRASP or the exact optimum), ``random_policy`` draws uniform actions;
+``rollout`` runs any of them, or a learned controller, on the same seeds so that they can be
+compared run by run.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Iterable
+
+import numpy as np
+
+from trackjam.control.solve import SOLVERS
+from trackjam.env.parallel import Planned, TrackjamParallelEnv
+
+Policy = Callable[[dict], dict]
+# the random policy's stream: the episode seed with this second word, so it is independent of the
+# engine's streams (spawned from the seed alone) and repeats with the seed
+RANDOM_POLICY_WORD = 1
+
+
+def solver_policy(env: TrackjamParallelEnv, solver: str) -> Policy:
+    """The team's plan by ``solver`` (one of greedy, grasp, exact), decided by the engine inside
+    the step: the run is the one :func:`trackjam.simulate` gives with that solver and seed."""
+    if solver not in SOLVERS:
+        raise ValueError(f"solver_policy: unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")
+    action = Planned(solver)
+
+    def policy(obs: dict) -> dict:
+        return {a: action for a in obs if a in env.agents}
+
+    policy.__name__ = solver
+    return policy
+
+
+class RandomPolicy:
+    """Uniform actions from every agent's action space, from a stream the episode seed fixes."""
+
+    __name__ = "random"
+
+    def __init__(self, env: TrackjamParallelEnv, seed: int = 0) -> None:
+        self.env = env
+        self.reset(seed)
+
+    def reset(self, seed: int) -> None:
+        self.rng = np.random.default_rng([int(seed), RANDOM_POLICY_WORD])
+
+    def __call__(self, obs: dict) -> dict:
+        return {a: self.rng.integers(self.env.action_space(a).nvec) for a in self.env.agents}
+
+
+def random_policy(env: TrackjamParallelEnv, seed: int = 0) -> RandomPolicy:
+    return RandomPolicy(env, seed)
+
+
+def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
+            progress: Callable[[dict], None] | None = None) -> list[dict]:
+    """One episode per seed; per episode the run summary (:func:`trackjam.metrics.summary.summarise`)
+    with ``policy`` (its name), ``return`` (the summed shared reward), ``steps`` and ``end``.
+    A policy with a ``reset(seed)`` method is reset at the start of each episode."""
+    rows = []
+    for seed in seeds:
+        obs, _ = env.reset(seed=int(seed))
+        if hasattr(policy, "reset"):
+            policy.reset(int(seed))
+        total, steps, end = 0.0, 0, ""
+        while env.agents:
+            obs, rewards, _, _, infos = env.step(policy(obs))
+            total += next(iter(rewards.values()))
+            steps += 1
+            end = next(iter(infos.values())).get("end", "")
+        summary = env.sim.result().summary
+        row = {**summary, "policy": getattr(policy, "__name__", type(policy).__name__), "seed": int(seed),
+               "return": total, "steps": steps, "end": end}
+        row.pop("solver", None)  # the scenario's solver, not necessarily who decided
+        rows.append(row)
+        if progress is not None:
+            progress(row)
+    return rows

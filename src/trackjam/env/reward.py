@@ -1,0 +1,34 @@
+"""The learning environment's reward: Eq. (12)'s objective at the true target, less a penalty
+for every agent that Eq. (13) failed to protect.
+
+reward_t = Xi^N_n(p_D^1, ..., p_D^N) - lambda * sum_i v_i, shared by every agent, where
+
+- p_D^j is Eq. (9) evaluated at the TRUE target for the executed step: agent j at its new
+  position, at its level, its cone pointing as ``antenna.pointing`` says (0 while the target is
+  absent or occluded), so the reward is what the plan achieved, not what it hoped for at x_bar;
+- v_i = 0 when agent i receives R_i < delta from its teammates (Eq. 13 holds), else
+  1 + log10(R_i / delta): a jammed agent costs at least lambda, and one more per decade of excess;
+- lambda is ``jam_penalty`` (default 1: one jammed agent outweighs the best detection).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trackjam.control.objective import at_least_probability
+
+
+def violation(interference_w: np.ndarray, delta_w: float) -> np.ndarray:
+    """v_i per agent: 0 while Eq. (13) holds, else 1 + log10(R_i / delta)."""
+    r = np.asarray(interference_w, dtype=float)
+    jammed = r >= delta_w
+    v = np.zeros_like(r)
+    v[jammed] = 1.0 + np.log10(r[jammed] / delta_w)
+    return v
+
+
+def team_reward(p_d: np.ndarray, interference_w: np.ndarray, delta_w: float, at_least: int,
+                jam_penalty: float) -> float:
+    """Xi^N_n at the truth less ``jam_penalty`` times the summed violations."""
+    xi = float(at_least_probability(np.asarray(p_d, dtype=float), at_least))
+    return xi - jam_penalty * float(violation(interference_w, delta_w).sum())

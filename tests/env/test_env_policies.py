@@ -1,0 +1,75 @@
+"""Solver policies run the engine's own planning: through the environment they give the run
+`simulate` gives with that solver and seed; rollouts report comparable summaries per seed."""
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.env import parallel_env, random_policy, rollout, solver_policy
+from trackjam.simulation.loop import simulate
+
+FAST = ["steps=5", "filter.particles=400", "filter.birth_particles=100", "control.samples=300",
+        "control.iterations=3", "control.threads=1"]
+TIMING = {"solve_s", "step_s"}
+
+
+def same_logs(a: dict, b: dict) -> None:
+    assert set(a) == set(b)
+    for k in set(a) - TIMING:
+        assert np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f"), k
+
+
+@pytest.mark.parametrize("solver", ["greedy", "grasp", "exact"])
+def test_a_solver_policy_through_the_env_is_the_run_simulate_gives(solver):
+    s = load_scenario("paper-fig3", FAST + ["control.solver=grasp"])  # the env's own solver is not used
+    env = parallel_env(s)
+    policy = solver_policy(env, solver)
+    obs, _ = env.reset(seed=7)
+    while env.agents:
+        obs, _, _, _, infos = env.step(policy(obs))
+    mine = env.sim.result()
+    ref = simulate(load_scenario("paper-fig3", FAST + [f"control.solver={solver}", "seed=7"]))
+    same_logs(mine.steps, ref.steps)
+    same_logs(mine.agents, ref.agents)
+    same_logs(mine.measurements, ref.measurements)
+    assert infos["agent_0"]["level"] == ref.agents["level_index"][-3]
+
+
+def test_the_info_reports_the_solvers_choice_as_an_action():
+    env = parallel_env(load_scenario("paper-fig3", FAST + ["control.solver=exact"]))
+    obs, _ = env.reset(seed=2)
+    prev = env.sim.team.positions
+    _, _, _, _, infos = env.step(solver_policy(env, "exact")(obs))
+    D = env.sim.c.displacements
+    for j, a in enumerate(env.possible_agents):
+        assert np.allclose(env.sim.team.positions[j], prev[j] + D[infos[a]["move"]])
+        assert env.action_space(a).contains(np.array([infos[a]["move"], infos[a]["level"]]))
+
+
+def test_rollout_reports_one_summary_per_seed_and_repeats_itself():
+    env = parallel_env(load_scenario("paper-fig3", FAST + ["control.solver=exact"]))
+    rows = rollout(env, random_policy(env), [3, 4])
+    again = rollout(env, random_policy(env, seed=99), [3, 4])  # reset(seed) reseeds the policy
+    assert [r["seed"] for r in rows] == [3, 4]
+    assert [r["return"] for r in rows] == [r["return"] for r in again]
+    assert rows[0]["policy"] == "random" and rows[0]["steps"] == 5 and "truncated" in rows[0]["end"]
+    assert rows[0]["return"] != rows[1]["return"]
+    assert "ospa_mean" in rows[0] and "solver" not in rows[0]
+
+
+def test_rollout_return_is_the_sum_of_the_rewards():
+    env = parallel_env(load_scenario("paper-fig3", FAST + ["control.solver=exact"]))
+    policy = solver_policy(env, "exact")
+    obs, _ = env.reset(seed=3)
+    total = 0.0
+    while env.agents:
+        obs, rew, *_ = env.step(policy(obs))
+        total += rew["agent_0"]
+    [row] = rollout(env, policy, [3])
+    assert row["return"] == pytest.approx(total, abs=0) and row["policy"] == "exact"
+
+
+def test_an_unknown_solver_is_named():
+    env = parallel_env(load_scenario("paper-fig3", FAST))
+    with pytest.raises(ValueError, match="unknown solver 'optimal'"):
+        solver_policy(env, "optimal")
