@@ -75,7 +75,7 @@ def test_observation_holds_position_own_estimate_and_what_teammates_announced():
     assert o["own.est.e"] == pytest.approx(own.existence, rel=1e-6)
     assert np.allclose([o[f"own.est.{s}"] for s in ("x", "y", "z", "vx", "vy", "vz")], own.mean, rtol=1e-5)
     # agent 1's teammates, in index order: agents 0 and 2
-    received = {m.sender: m for m in team.predicted[1]}
+    received = {m.sender: m for m in team.fresh(1)}
     for slot, k in ((1, 0), (2, 2)):
         assert o[f"mate{slot}.received"] == 1
         assert np.allclose([o[f"mate{slot}.{ax}"] for ax in "xyz"], prev[k])
@@ -83,6 +83,26 @@ def test_observation_holds_position_own_estimate_and_what_teammates_announced():
     assert o["time"] == pytest.approx(1 / 6)
     for a in obs:
         assert env.observation_space(a).contains(obs[a])
+
+
+def test_a_teammate_not_heard_from_is_flagged_and_zeroed():
+    env = fast_env("comms.loss=1")
+    env.reset(seed=2)
+    obs, *_ = env.step({a: np.array([0, 1]) for a in env.agents})
+    o = dict(zip(observation_layout(3), obs["agent_0"]))
+    assert o["own.est.e"] > 0 and o["time"] > 0
+    for slot in (1, 2):
+        block = [v for k, v in o.items() if k.startswith(f"mate{slot}.")]
+        assert len(block) == 11 and not any(block)
+
+
+def test_a_broken_down_agent_keeps_its_place_and_says_so():
+    env = fast_env("comms.failures=[{agent: 1, step: 1, mode: breakdown}]")
+    env.reset(seed=2)
+    before = env.sim.team.positions[1].copy()
+    _, _, _, _, info = env.step({a: np.array([5, 3]) for a in env.agents})
+    assert info["agent_1"]["mode"] == "down" and info["agent_0"]["mode"] == "external"
+    assert np.allclose(env.sim.team.positions[1], before)
 
 
 def test_a_move_out_of_the_area_hovers_and_says_so():

@@ -167,7 +167,7 @@ class TrackjamParallelEnv(ParallelEnv):
             a: {
                 "t": record.t, "move": int(moves[j]), "level": int(ag["level_index"][j]), "hovered": bool(hovered[j]),
                 "p_d": float(ag["p_d"][j]), "interference_w": float(ag["interference_w"][j]),
-                "jammed": bool(ag["jammed"][j]), "mode": record.step["mode"],
+                "jammed": bool(ag["jammed"][j]), "mode": str(ag["mode"][j]),
                 **({"end": self._ended} if (terminated or truncated) else {}),
             }
             for a, j in ((a, self._index[a]) for a in live)
@@ -219,5 +219,5 @@ class TrackjamParallelEnv(ParallelEnv):
 
 
 def _inbox(team, j: int) -> list:
-    """The prediction-round messages agent j received this step (its own included)."""
-    return team.predicted[j]
+    """The prediction-round messages of this step agent j received (its own included)."""
+    return team.fresh(j)
