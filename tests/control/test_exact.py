@@ -1,13 +1,22 @@
-"""The exact solver is the optimum of Eqs. (12)-(13): full enumeration agrees with it."""
+"""The exact solver is the optimum of Eqs. (12)-(13): full enumeration agrees with it; stopped
+early it returns a feasible plan whose certified gap covers the distance to the optimum."""
+
+import threading
+import _thread
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackjam.control.exact import enumerate_optimum, solve_exact
+from trackjam.control.exact import BranchAndBound, enumerate_optimum, solve_exact
+from trackjam.control.objective import evaluate
 
 from control_instances import random_problem, tiny_displacements
+
+
+def slots(P, sol):
+    return np.array([int(np.flatnonzero(P.move[i] == sol.move[i])[0]) for i in range(P.n_agents)])
 
 
 @pytest.mark.parametrize("n_agents", [2, 3])
@@ -22,8 +31,75 @@ def test_exact_equals_full_enumeration(antenna, n_agents, constraints):
         assert sol.objective == pytest.approx(value, rel=1e-12, abs=1e-15)
         assert np.array_equal(sol.move, P.move[np.arange(n_agents), cand])
         assert np.array_equal(sol.level, level)
+        assert sol.optimal and sol.gap == 0.0 and sol.nodes > 0
         if constraints:
             assert sol.feasible
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 3), st.integers(1, 3), st.booleans(),
+       st.sampled_from([1, 2, 5, 20, 100]))
+def test_a_stopped_search_certifies_its_gap(antenna, seed, n_agents, at_least, constraints, node_limit):
+    rng = np.random.default_rng(seed)
+    P = random_problem(rng, antenna, n_agents, min(at_least, n_agents), constraints,
+                       spread=rng.uniform(3, 15))
+    optimum = enumerate_optimum(P)[0]
+    sol = solve_exact(P, node_limit=node_limit)
+    xi, ok = evaluate(P, slots(P, sol), sol.level)
+    assert sol.objective == float(xi)
+    assert ok or not constraints
+    assert sol.nodes <= node_limit
+    assert sol.objective + sol.gap >= optimum - 1e-12
+    assert sol.objective <= optimum + 1e-12
+    if sol.optimal:
+        assert sol.gap == 0.0 and sol.objective == pytest.approx(optimum, rel=1e-12, abs=1e-15)
+    else:
+        assert sol.gap > 0.0
+
+
+def test_a_search_run_in_chunks_is_the_search_run_at_once(antenna):
+    rng = np.random.default_rng(8)
+    pauses = 0
+    for trial in range(5):
+        P = random_problem(rng, antenna, 4, 2, trial % 2 == 0, spread=8.0)
+        whole = BranchAndBound(P)
+        assert whole.step(0)
+        chunked = BranchAndBound(P)
+        while not chunked.step(3):
+            pauses += 1
+        assert chunked.nodes == whole.nodes and chunked.value == whole.value
+        assert np.array_equal(chunked.best_cand, whole.best_cand)
+        assert np.array_equal(chunked.best_level, whole.best_level)
+    assert pauses > 0
+
+
+def test_more_nodes_never_lower_the_plan_and_enough_prove_it(antenna):
+    P = random_problem(np.random.default_rng(2), antenna, 3, 2, True, spread=6.0)
+    optimum = enumerate_optimum(P)[0]
+    sols = [solve_exact(P, node_limit=k) for k in (1, 4, 16, 64, 256, 1 << 20)]
+    values = [s.objective for s in sols]
+    assert all(b >= a for a, b in zip(values, values[1:]))
+    assert all(s.objective + s.gap >= optimum - 1e-12 for s in sols)
+    assert sols[0].gap > 0.0 and not sols[0].optimal
+    assert sols[-1].optimal and sols[-1].gap == 0.0
+
+
+def test_ctrl_c_stops_a_long_exact_search(antenna):
+    from control_instances import HIGH, LOW
+    from trackjam.control.problem import build_problem
+    from trackjam.world.moves import displacement_set
+
+    rng = np.random.default_rng(0)
+    x = np.full(3, 50.0)
+    u = x + rng.normal(0, 8, (8, 3))
+    P = build_problem(u, x, displacement_set([1.0, 3.0, 5.0], 8, 8), antenna, LOW, HIGH, 2, True)
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            solve_exact(P, time_limit_s=600.0)
+    finally:
+        timer.cancel()
 
 
 @settings(max_examples=25, deadline=None)

@@ -32,3 +32,23 @@ def test_solvers_share_one_answer_shape(fig3_problem):
 def test_unknown_solver_is_an_error(fig3_problem):
     with pytest.raises(ValueError):
         solve(fig3_problem, "annealing", [])
+
+
+def test_exact_honours_its_budget_through_the_dispatch(fig3_problem):
+    full = solve(fig3_problem, "exact", [])
+    assert full.optimal and full.gap == 0.0
+    capped = solve(fig3_problem, "exact", [], node_limit=1)
+    assert capped.nodes == 1 and not capped.optimal and capped.objective + capped.gap >= full.objective - 1e-12
+    for name in ("greedy", "grasp"):
+        sol = solve(fig3_problem, name, [np.random.default_rng([0, j]) for j in range(3)], samples=50, iterations=2)
+        assert not sol.optimal and np.isnan(sol.gap)  # no certificate from a heuristic
+
+
+@pytest.mark.parametrize("value, words", [("0", "greater than 0"), ("-1", "greater than 0"),
+                                          ("1e9", "less than or equal to 3600"), (".nan", "finite")])
+def test_a_bad_time_budget_is_one_line_naming_the_key(value, words):
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError) as info:
+        load_scenario("paper-fig3", [f"control.time_limit_s={value}"])
+    assert "\n" not in str(info.value) and "control.time_limit_s" in str(info.value) and words in str(info.value)

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from trackjam.config import load_scenario
-from trackjam.control.exact import kernel_branch_and_bound, pair_order, solve_exact
+from trackjam.control.exact import BranchAndBound, solve_exact
 from trackjam.control.grasp import solve_grasp
 from trackjam.control.problem import build_problem
 from trackjam.radio.antenna import AntennaModel
@@ -61,15 +61,10 @@ def _stats(ms: list[float]) -> dict:
 
 
 def _time_exact(P, max_nodes: int = 0):
-    order, n_pairs = pair_order(P)
-    cand = np.zeros(P.n_agents, dtype=np.int64)
-    level = np.zeros(P.n_agents, dtype=np.int64)
     t = time.perf_counter()
-    value, nodes, proven = kernel_branch_and_bound(
-        P.p_d, P.gain, P.levels_w, P.delta_w, P.at_least, P.constraints, order, n_pairs,
-        cand, level, max_nodes,
-    )
-    return 1e3 * (time.perf_counter() - t), value, nodes, proven
+    search = BranchAndBound(P)
+    proven = search.run(None, max_nodes)
+    return 1e3 * (time.perf_counter() - t), search.value, search.nodes, proven
 
 
 def _warm():
@@ -161,6 +156,36 @@ def bench_scaling(n_agents=range(2, 7), instances: int = 10, seed: int = 0, samp
             "largest_exact_within_budget": largest}
 
 
+def bench_budget(n_agents=(6, 8), instances: int = 20, seed: int = 0, time_limit_s: float = 1.0) -> dict:
+    """`exact` under its time budget (``control.time_limit_s``) at 79 controls, n = 2: time per
+    step (build and solve), the share of steps proven optimal, and the certified gaps left
+    (optimum - plan <= gap, in units of Xi) over the steps that were not."""
+    _warm()
+    D = displacement_set(*CONTROL_CASES[79])
+    antennas = {a: paper_antenna(a) for a in OPENING_ANGLES_DEG}
+    rows = []
+    for N in n_agents:
+        rng = np.random.default_rng([seed, N])
+        ms, gaps, proven, values = [], [], [], []
+        for _ in range(instances):
+            u, x, a = draw_instance(rng, N)
+            t = time.perf_counter()
+            P = build_problem(u, x, D, antennas[a], LOW, HIGH, 2, True)
+            sol = solve_exact(P, time_limit_s=time_limit_s)
+            ms.append(1e3 * (time.perf_counter() - t))
+            gaps.append(sol.gap)
+            proven.append(sol.optimal)
+            values.append(sol.objective)
+        g = np.asarray(gaps)
+        rows.append({
+            "agents": N, "instances": instances, "step_ms_median": float(np.median(ms)),
+            "step_ms_max": float(np.max(ms)), "proven_optimal": float(np.mean(proven)),
+            "gap_median": float(np.median(g)), "gap_max": float(g.max()),
+            "xi_median": float(np.median(values)),
+        })
+    return {"controls": 79, "time_limit_s": time_limit_s, "rows": rows}
+
+
 def run(quick: bool = True, seed: int = 0) -> dict:
     """All the control benchmarks; ``quick`` keeps the total well under 2 minutes."""
     if quick:
@@ -169,6 +194,7 @@ def run(quick: bool = True, seed: int = 0) -> dict:
             "exact_175": bench_exact(175, 50, seed),
             "grasp_79": bench_grasp(79, 8, seed),
             "scaling": bench_scaling(range(2, 7), 4, seed, samples=2000, iterations=20, max_agents=8),
+            "exact_budget": bench_budget((6, 8), 5, seed),
         }
     return {
         "exact_79": bench_exact(79, 1000, seed),
@@ -177,6 +203,7 @@ def run(quick: bool = True, seed: int = 0) -> dict:
         "grasp_79": bench_grasp(79, 50, seed),
         "grasp_79_threads": bench_grasp(79, 50, seed, threads=2),
         "scaling": bench_scaling(range(2, 7), 20, seed),
+        "exact_budget": bench_budget((6, 8), 20, seed),
     }
 
 

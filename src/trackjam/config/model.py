@@ -233,6 +233,14 @@ class Control(_Model):
         description="threads running the agents' GRASP searches side by side (same result for any value); "
         "null: one per agent up to the CPU count, or 1 inside experiment workers",
     )
+    time_limit_s: float = Field(
+        1.0,
+        gt=0,
+        le=3600,
+        allow_inf_nan=False,
+        description="`exact`: wall-time budget of one step's search [s] (ours); when it runs out the best plan "
+        "found is used and the solution reports its certified gap to the optimum",
+    )
     fallback: Literal["hover", "search"] = Field(
         "hover",
         description="when no agent believes in the target: `hover` (MODEL.md: hover, keep the last aim, highest "

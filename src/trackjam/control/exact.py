@@ -1,4 +1,5 @@
-"""The proven optimum of Eqs. (12)-(13) by branch and bound (ours, beyond the paper).
+"""The proven optimum of Eqs. (12)-(13) by branch and bound (ours, beyond the paper), with a
+time budget that returns the incumbent and a certified bound on its gap to the optimum.
 
 Agents are assigned in index order 0..N-1; each agent's (candidate, level) pairs are tried in
 the order p_D descending, then lower level, then lower displacement index. Two facts make the
@@ -15,32 +16,54 @@ strictly better value. The incumbent starts as every agent hovering at the lowes
 0 W: always feasible), so the result is that when no joint control beats it; otherwise it is
 the first optimum in the search order above (ties are exact floating-point ties).
 
+The objective is written for S weighted target positions (sum_s w_s Xi at sample s; S = 1 is
+Eq. (12) at x_bar). The bound of the pairs of an agent from rank r on takes, at every sample,
+the largest p_D among them (a suffix maximum), which for S = 1 is p_D at rank r itself.
+
+The search is resumable: the compiled kernel runs a bounded number of nodes and returns to
+Python, which keeps the clock (``time_limit_s``) and lets Ctrl-C through between chunks. When
+the budget runs out, every unexplored branch is a run of siblings at some depth of the current
+path; the largest of their bounds minus the incumbent's value is the certified gap.
+
 ``enumerate_optimum`` is the plain-numpy full enumeration the tests hold the kernel to.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+import time
 
 import numpy as np
 from numba import njit
 
-from trackjam.control.objective import evaluate, kernel_at_least, kernel_feasible, to_solution
+from trackjam.control.objective import at_least_probability, evaluate, kernel_at_least, kernel_feasible, to_solution
 from trackjam.control.problem import Problem, Solution
+
+#: wall time a chunk of the search aims at [s]: Ctrl-C and the clock are checked between chunks
+CHUNK_S = 0.02
+
+
+def objective_tables(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """p_D of every (sample, agent, candidate, level), shape (S, N, C, L), and the weights (S,)."""
+    return problem.p_d[None], np.ones(1)
 
 
 def pair_order(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """Each agent's pairs k = c * L + l, ranked by p_D descending, then level, then move.
+    """Each agent's pairs k = c * L + l, ranked by (weighted mean) p_D descending, then level,
+    then move.
 
     Returns ``order`` (N, C*L) padded with -1, and ``n_pairs`` (N,).
     """
     N, C, L = problem.p_d.shape
+    p_s, w = objective_tables(problem)
+    score = p_s[0] if w.shape[0] == 1 else np.tensordot(w, p_s, axes=1)
     order = np.full((N, C * L), -1, dtype=np.int64)
     n_pairs = problem.n_cand * L
     for i in range(N):
         n = int(problem.n_cand[i])
         c, l = np.divmod(np.arange(n * L), L)
-        p = problem.p_d[i, c, l]
+        p = score[i, c, l]
         rank = np.lexsort((c, l, -p))  # last key is primary
         order[i, : n * L] = c[rank] * L + l[rank]
     return order, n_pairs
@@ -116,52 +139,55 @@ def _first_admissible(k, start, d, rank, rank_c, rank_l, n_pairs, rows, gain, le
 
 
 @njit(cache=True)
-def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n_pairs,
-                            best_cand, best_level, max_nodes):
-    """Maximise Xi^N_n subject to Eq. (13) (when ``constrained``).
+def kernel_mean_xi(pv, w, n, q):
+    """sum_s w_s Xi^N_n(pv[s]) for ``pv`` (S, N); for S = 1, w = [1] it is Xi bit for bit."""
+    acc = 0.0
+    for s in range(w.shape[0]):
+        acc += w[s] * kernel_at_least(pv[s], n, q)
+    return acc
 
-    ``best_cand``/``best_level`` (N,) hold the starting incumbent on entry and the optimum on
-    exit. Returns (value, nodes visited, proven): value is -inf when nothing feasible was
-    found; ``proven`` is False only when ``max_nodes`` > 0 stopped the search early (then the
-    incumbent is the best found so far).
+
+@njit(cache=True)
+def kernel_start_value(p_s, w, gain, levels_w, delta, n, constrained, cand, level):
+    """Objective of the starting incumbent (-inf when Eq. (13) is enforced and broken)."""
+    S, N = p_s.shape[0], p_s.shape[1]
+    pv = np.empty((S, N))
+    for s in range(S):
+        for i in range(N):
+            pv[s, i] = p_s[s, i, cand[i], level[i]]
+    if constrained and not kernel_feasible(gain, levels_w, delta, cand, level):
+        return -np.inf
+    return kernel_mean_xi(pv, w, n, np.empty(n + 1))
+
+
+@njit(cache=True)
+def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, rank_c, rank_l,
+                            n_pairs, rows, have, c, lv, rank, p, recv, bptr, cur, best_cand,
+                            best_level, state, best_value, max_nodes):
+    """Maximise sum_s w_s Xi^N_n subject to Eq. (13) (when ``constrained``), resumably.
+
+    ``ps[s, i, r]`` is p_D of agent i's pair of rank r at sample s, ``smax`` its suffix maximum
+    over ranks; ``state`` = [depth, nodes visited], ``best_value`` = [incumbent value], and
+    ``best_cand``/``best_level`` (N,) the incumbent; with ``c, lv, rank, p, recv, bptr, cur``
+    they are the whole search state, saved on return. Runs at most ``max_nodes`` more nodes
+    (all of them when <= 0); returns True when the search is complete (the incumbent is then
+    the optimum; -inf when nothing feasible exists).
     """
-    N = p_d.shape[0]
-    L = levels_w.shape[0]
-    P = order.shape[1]
+    S, N = ps.shape[0], ps.shape[1]
+    pv = np.empty((S, N))
     q = np.empty(n + 1)
-    pv = np.empty(N)
-    ps = np.zeros((N, P))  # p_D of each ranked pair
-    rank_c = np.zeros((N, P), dtype=np.int64)
-    rank_l = np.zeros((N, P), dtype=np.int64)
-    for i in range(N):
-        for r in range(n_pairs[i]):
-            kk = order[i, r]
-            rank_c[i, r] = kk // L
-            rank_l[i, r] = kk % L
-            ps[i, r] = p_d[i, rank_c[i, r], rank_l[i, r]]
-    W = (P + 63) // 64 if constrained else 1
-    rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
-    have = np.zeros((N, P), dtype=np.bool_)
-    c = np.zeros(N, dtype=np.int64)
-    lv = np.zeros(N, dtype=np.int64)
-    rank = np.zeros(N, dtype=np.int64)
-    p = np.zeros(N)
-    recv = np.zeros((N, N))  # recv[d, j]: power at agent j from agents 0..d
-    bptr = np.zeros((N + 1, N), dtype=np.int64)  # first admissible rank of agent k given 0..d-1
-    cur = np.zeros(N, dtype=np.int64)
-
-    for i in range(N):
-        pv[i] = p_d[i, best_cand[i], best_level[i]]
-    best = kernel_at_least(pv, n, q)
-    if constrained and not kernel_feasible(gain, levels_w, delta, best_cand, best_level):
-        best = -np.inf
-
-    nodes = 0
-    d = 0
-    cur[0] = 0
+    d = state[0]
+    nodes = state[1]
+    best = best_value[0]
+    stop = nodes + max_nodes
     while d >= 0:
         descended = False
         while cur[d] < n_pairs[d]:
+            if max_nodes > 0 and nodes >= stop:
+                state[0] = d
+                state[1] = nodes
+                best_value[0] = best
+                return False
             r = cur[d]
             if constrained and d > 0:
                 r = _first_admissible(d, r, d - 1, rank, rank_c, rank_l, n_pairs, rows, gain,
@@ -171,21 +197,24 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
                     break
             cur[d] = r + 1
             nodes += 1
-            if max_nodes > 0 and nodes > max_nodes:
-                return best, nodes, False
-            for j in range(d):
-                pv[j] = p[j]
-            pv[d] = ps[d, r]
-            for k in range(d + 1, N):
-                pv[k] = ps[k, bptr[d, k]]
-            bound = kernel_at_least(pv, n, q)
-            if bound <= best:
-                cur[d] = n_pairs[d]  # later pairs of agent d have lower or equal p_D
+            for s in range(S):
+                for j in range(d):
+                    pv[s, j] = p[s, j]
+                pv[s, d] = smax[s, d, r]
+                for k in range(d + 1, N):
+                    pv[s, k] = smax[s, k, bptr[d, k]]
+            if kernel_mean_xi(pv, w, n, q) <= best:
+                cur[d] = n_pairs[d]  # no later pair of agent d does better
                 break
+            for s in range(S):
+                pv[s, d] = ps[s, d, r]
+            if S > 1 and kernel_mean_xi(pv, w, n, q) <= best:
+                continue
             c[d] = rank_c[d, r]
             lv[d] = rank_l[d, r]
             rank[d] = r
-            p[d] = ps[d, r]
+            for s in range(S):
+                p[s, d] = ps[s, d, r]
             if constrained:
                 inc = 0.0
                 for j in range(d):
@@ -193,11 +222,13 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
                     recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
                 recv[d, d] = inc
             if d == N - 1:
-                best = bound
+                best = kernel_mean_xi(pv, w, n, q)
                 best_cand[:] = c
                 best_level[:] = lv
-                cur[d] = n_pairs[d]
-                break
+                if S == 1:
+                    cur[d] = n_pairs[d]  # later pairs have lower or equal p_D
+                    break
+                continue
             if constrained and not have[d, r]:
                 _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows)
                 have[d, r] = True
@@ -211,11 +242,11 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
                     dead = True
                     break
                 bptr[d + 1, k] = rr
-                pv[k] = ps[k, rr]
+                for s in range(S):
+                    pv[s, k] = smax[s, k, rr]
             if dead:
                 continue
-            pv[d] = p[d]
-            if kernel_at_least(pv, n, q) <= best:
+            if kernel_mean_xi(pv, w, n, q) <= best:
                 continue
             d += 1
             cur[d] = bptr[d, d]
@@ -223,20 +254,124 @@ def kernel_branch_and_bound(p_d, gain, levels_w, delta, n, constrained, order, n
             break
         if not descended:
             d -= 1
-    return best, nodes, True
+    state[0] = d
+    state[1] = nodes
+    best_value[0] = best
+    return True
 
 
-def solve_exact(problem: Problem) -> Solution:
-    """The optimum of Eqs. (12)-(13) (of Eq. 12 alone when constraints are off)."""
-    order, n_pairs = pair_order(problem)
-    N = problem.n_agents
-    cand = np.zeros(N, dtype=np.int64)
-    level = np.zeros(N, dtype=np.int64)
-    kernel_branch_and_bound(
-        problem.p_d, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
-        problem.constraints, order, n_pairs, cand, level, 0,
-    )
-    return to_solution(problem, cand, level)
+class BranchAndBound:
+    """One exact search over a :class:`Problem`, run in chunks (see the module docstring)."""
+
+    def __init__(self, problem: Problem):
+        self.problem = problem
+        N, C, L = problem.p_d.shape
+        p_s, self.w = objective_tables(problem)
+        order, self.n_pairs = pair_order(problem)
+        P = order.shape[1]
+        valid = order >= 0
+        self.rank_c = np.where(valid, order // L, 0)
+        self.rank_l = np.where(valid, order % L, 0)
+        self.ps = np.ascontiguousarray(p_s[:, np.arange(N)[:, None], self.rank_c, self.rank_l] * valid)
+        self.smax = np.ascontiguousarray(np.maximum.accumulate(self.ps[..., ::-1], axis=-1)[..., ::-1])
+        constrained = problem.constraints
+        W = (P + 63) // 64 if constrained else 1
+        self.rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
+        self.have = np.zeros((N, P), dtype=np.bool_)
+        self.c = np.zeros(N, dtype=np.int64)
+        self.lv = np.zeros(N, dtype=np.int64)
+        self.rank = np.zeros(N, dtype=np.int64)
+        self.p = np.zeros((p_s.shape[0], N))
+        self.recv = np.zeros((N, N))  # recv[d, j]: power at agent j from agents 0..d
+        self.bptr = np.zeros((N + 1, N), dtype=np.int64)  # first admissible rank of k given 0..d-1
+        self.cur = np.zeros(N, dtype=np.int64)
+        self.best_cand = np.zeros(N, dtype=np.int64)
+        self.best_level = np.zeros(N, dtype=np.int64)
+        self.state = np.zeros(2, dtype=np.int64)
+        start = kernel_start_value(p_s, self.w, problem.gain, problem.levels_w, problem.delta_w,
+                                   problem.at_least, constrained, self.best_cand, self.best_level)
+        self.best_value = np.array([start])
+        self.finished = False
+
+    @property
+    def nodes(self) -> int:
+        return int(self.state[1])
+
+    @property
+    def value(self) -> float:
+        """Value of the incumbent."""
+        return float(self.best_value[0])
+
+    def step(self, max_nodes: int) -> bool:
+        """Run at most ``max_nodes`` more nodes (all when <= 0); True when the search is done."""
+        P = self.problem
+        if not self.finished:
+            self.finished = bool(kernel_branch_and_bound(
+                self.w, P.gain, P.levels_w, P.delta_w, P.at_least, P.constraints, self.ps, self.smax,
+                self.rank_c, self.rank_l, self.n_pairs, self.rows, self.have, self.c, self.lv, self.rank,
+                self.p, self.recv, self.bptr, self.cur, self.best_cand, self.best_level, self.state,
+                self.best_value, int(max_nodes),
+            ))
+        return self.finished
+
+    def run(self, time_limit_s: float | None = None, node_limit: int = 0) -> bool:
+        """Search until done, ``time_limit_s`` [s] has passed or ``node_limit`` nodes (> 0) have
+        been visited; returns whether the search is complete."""
+        start = time.perf_counter()
+        chunk = 2048
+        while True:
+            if node_limit > 0:
+                chunk = min(chunk, node_limit - self.nodes)
+                if chunk <= 0:
+                    return self.finished
+            t0 = time.perf_counter()
+            if self.step(chunk):
+                return True
+            now = time.perf_counter()
+            if time_limit_s is not None:
+                left = time_limit_s - (now - start)
+                if left <= 0:
+                    return False
+                aim = min(CHUNK_S, left)
+            else:
+                aim = CHUNK_S
+            # keep each chunk near ``aim`` seconds, whatever a node costs on this instance
+            rate = chunk / max(now - t0, 1e-6)
+            chunk = int(min(max(rate * aim, 64), 1 << 26))
+
+    def open_bound(self) -> float:
+        """Largest bound of any branch not yet explored (-inf when none is left)."""
+        if self.finished:
+            return -np.inf
+        N, n = self.problem.n_agents, self.problem.at_least
+        out = -np.inf
+        for e in range(int(self.state[0]) + 1):
+            r = self.cur[e]
+            if r >= self.n_pairs[e]:
+                continue
+            pv = np.empty((self.ps.shape[0], N))
+            pv[:, :e] = self.p[:, :e]
+            pv[:, e] = self.smax[:, e, r]
+            for k in range(e + 1, N):
+                pv[:, k] = self.smax[:, k, self.bptr[e, k]]
+            out = max(out, float(self.w @ at_least_probability(pv, n)))
+        return out
+
+    def solution(self) -> Solution:
+        """The incumbent as a :class:`Solution`, with whether it is proven optimal and the
+        certified gap: the largest open bound minus its value (0 when proven)."""
+        sol = to_solution(self.problem, self.best_cand, self.best_level)
+        gap = max(self.open_bound() - self.value, 0.0)
+        return dataclasses.replace(sol, optimal=gap == 0.0, gap=gap, nodes=self.nodes)
+
+
+def solve_exact(problem: Problem, time_limit_s: float | None = None, node_limit: int = 0) -> Solution:
+    """The optimum of Eqs. (12)-(13) (of Eq. 12 alone when constraints are off), or, when
+    ``time_limit_s`` [s] or ``node_limit`` nodes run out first, the best plan found with its
+    certified gap (``Solution.optimal``, ``Solution.gap``)."""
+    search = BranchAndBound(problem)
+    search.run(time_limit_s, node_limit)
+    return search.solution()
 
 
 def enumerate_optimum(problem: Problem) -> tuple[float, np.ndarray, np.ndarray]:

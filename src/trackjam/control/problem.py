@@ -61,6 +61,9 @@ class Solution:
     level: np.ndarray  # (N,) index into antenna.levels_w
     objective: float  # Xi^N_n of this choice at x_bar
     feasible: bool  # Eq. (13) holds for every agent (reported even when constraints are off)
+    optimal: bool = False  # proven optimal (only `exact` proves it, when its budget suffices)
+    gap: float = float("nan")  # certified bound on (optimum - objective); 0 when optimal, NaN: no certificate
+    nodes: int = 0  # branch-and-bound nodes visited (`exact`)
 
 
 @njit(cache=True)
