@@ -61,3 +61,128 @@ def test_missing_file_exits_2(tmp_path):
 def test_bad_set_exits_2():
     r = runner.invoke(app, ["show-config", "paper-fig3", "--set", "antenna.height"])
     assert r.exit_code == 2
+
+
+def trackjam(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "trackjam", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def one_line_exit_2(r, *words):
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr and "Traceback" not in r.stdout
+    lines = [l for l in r.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith("trackjam: error: ")
+    for w in words:
+        assert w in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    "item, key",
+    [
+        ("antenna.power_levels_db=[off, 5000]", "antenna.power_levels_db"),
+        ("area.high=[1e300, 1e300, 1e300]", "area.high"),
+        ("agents.n_inclination=1000", "agents.n_inclination"),
+        ("control.samples=1e9", "control.samples"),
+        ("steps=true", "steps"),
+    ],
+)
+def test_validate_refuses_values_past_their_bounds_in_one_line(item, key):
+    one_line_exit_2(trackjam("validate", "paper-fig3", "--set", item), f"--set {item}: {key}")
+
+
+def write_bytes(tmp_path, name, data):
+    f = tmp_path / name
+    f.write_bytes(data)
+    return str(f)
+
+
+@pytest.mark.parametrize(
+    "name, data, words",
+    [
+        ("empty.yaml", b"", ["is empty"]),
+        ("comments.yaml", b"# only a comment\n", ["is empty"]),
+        ("utf16.yaml", "steps: 3\n".encode("utf-16"), ["not UTF-8 text", "UTF-16"]),
+        ("binary.yaml", bytes(range(256)) * 4, ["not UTF-8 text"]),
+        ("nul.yaml", b"steps: 3\n\x00\x00", ["NUL"]),
+        ("dup.yaml", b"steps: 3\nantenna: {height: 3}\nsteps: 4\n", ["duplicate key 'steps' (line 3)"]),
+        ("dup2.yaml", b"antenna:\n  height: 3\n  r0: 1\n  height: 4\n", ["duplicate key 'height' (line 4)"]),
+        ("big.yaml", b"#" * 2_000_000, ["larger than 1 MB"]),
+        ("typo.yaml", b"antenna: {heigth: 3}\n", ["antenna.heigth: unknown key (did you mean antenna.height?)"]),
+        ("typo2.yaml", b"filtr: {particles: 30}\n", ["filtr: unknown key (did you mean filter?)"]),
+        ("far.yaml", b"xyz: 1\n", ["xyz: unknown key"]),
+        ("list.yaml", b"- 1\n- 2\n", ["must be a mapping"]),
+        ("big.toml", b"steps = 3\nsteps = 4\n", ["not valid TOML"]),
+    ],
+)
+def test_bad_scenario_files_are_one_line(tmp_path, name, data, words):
+    path = write_bytes(tmp_path, name, data)
+    line = one_line_exit_2(trackjam("validate", path), path, *words)
+    if name == "far.yaml":
+        assert "did you mean" not in line
+
+
+@pytest.mark.parametrize("device, words", [("/dev/null", "is empty"), ("/dev/zero", "larger than 1 MB")])
+def test_devices_are_refused_and_never_read_forever(device, words):
+    one_line_exit_2(trackjam("validate", device), words)
+
+
+def test_a_float_written_with_an_exponent_is_a_number_in_yaml(tmp_path):
+    from trackjam.config import load_scenario
+
+    path = write_bytes(tmp_path, "e.yaml", b"filter: {particles: 2e3, birth_speed: 1e300}\n")
+    one_line_exit_2(trackjam("validate", path), "filter.birth_speed: Input should be less than or equal to 1000")
+    path = write_bytes(tmp_path, "f.yaml", b"filter: {particles: 2e3, birth_speed: 1.5e0}\n")
+    s = load_scenario(path)
+    assert s.filter.particles == 2000 and s.filter.birth_speed == 1.5
+
+
+def test_a_set_error_is_blamed_on_the_set_and_a_file_error_on_the_file(tmp_path):
+    path = write_bytes(tmp_path, "s.yaml", b"antenna: {heigth: 3}\n")
+    line = one_line_exit_2(trackjam("validate", path, "--set", "antenna.r0=-1"))
+    assert line.index("--set antenna.r0=-1: antenna.r0:") < line.index(f"{path}: antenna.heigth")
+    path = write_bytes(tmp_path, "t.yaml", b"steps: 5\n")
+    one_line_exit_2(trackjam("validate", path, "--set", "control.at_least=9"), "--set control.at_least=9: control.at_least (9)")
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["run", "--seed", "abc"], ["--seed"]),
+        (["run", "--bogus"], ["--bogus"]),
+        (["nosuch"], ["nosuch"]),
+        (["experiment", "table1", "--trials", "x"], ["--trials"]),
+    ],
+)
+def test_malformed_options_are_one_line_not_a_box(args, words):
+    one_line_exit_2(trackjam(*args), *words)
+
+
+def test_version():
+    import trackjam as tj
+
+    r = trackjam("--version")
+    assert r.returncode == 0 and r.stdout.strip() == f"trackjam {tj.__version__}"
+
+
+def test_suspicious_values_warn_one_line_each_and_validate_still_says_ok():
+    r = trackjam(
+        "validate", "paper-fig3",
+        "--set", "antenna.opening_angle_deg=1.4",
+        "--set", "target.appears=31",
+        "--set", "target.occlusions=[[14, 17], [29, 40]]",
+        "--set", "agents.initial=[[5, 5, 5], [7, 7, 7], [5, 5, 5], [5, 5, 5]]",
+    )
+    assert r.returncode == 0 and r.stdout.startswith("ok"), r.stderr
+    lines = r.stderr.splitlines()
+    assert len(lines) == 4 and all(l.startswith("trackjam: warning: ") for l in lines)
+    assert "antenna.opening_angle_deg" in lines[0] and "radians by mistake" in lines[0] and "80 deg" in lines[0]
+    assert "target.appears" in lines[1] and "after the last step (30)" in lines[1]
+    assert "target.occlusions: [29, 40]" in lines[2] and "[14, 17]" not in lines[2]
+    assert "agents.initial: [0], [2], [3]" in lines[3]
+
+
+def test_an_ordinary_scenario_gives_no_warning():
+    r = trackjam("validate", "paper-fig3")
+    assert r.returncode == 0 and r.stderr == ""

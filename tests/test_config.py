@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from trackjam.config import (
@@ -64,7 +65,7 @@ def test_overrides_are_dotted_and_validated():
         ("antenna.heigth=3", "antenna.heigth", "unknown key"),
         ("steps=abc", "steps", "integer"),
         ("antenna.height=-3", "antenna.height", "greater than 0"),
-        ("antenna.opening_angle_deg=180", "antenna.opening_angle_deg", "(0, 180)"),
+        ("antenna.opening_angle_deg=180", "antenna.opening_angle_deg", "[0.1, 170]"),
         ("antenna.power_levels_db=[]", "antenna.power_levels_db", "at least 1"),
         ("antenna.r0=.nan", "antenna.r0", "finite"),
         ("antenna.power_levels_db=[off, .nan]", "antenna.power_levels_db", "finite"),
@@ -93,3 +94,111 @@ def test_missing_file_is_a_clear_error():
 def test_a_scenario_must_be_a_mapping():
     with pytest.raises(ConfigError, match="mapping"):
         validate_scenario([1, 2], "x")
+
+
+@pytest.mark.parametrize(
+    "override, key, words",
+    [
+        ("antenna.power_levels_db=[off, 5000]", "antenna.power_levels_db", "outside [-200, 60] dBW"),
+        ("antenna.interference_limit_db=5000", "antenna.interference_limit_db", "less than or equal to 60"),
+        ("target.response={threshold_db: 5000}", "target.response.threshold_db", "less than or equal to 60"),
+        ("filter.birth_speed=1e300", "filter.birth_speed", "less than or equal to 1000"),
+        ("filter.cue.position_std=1e300", "filter.cue.position_std", "less than or equal to 100000"),
+        ("area.high=[1e300, 1e300, 1e300]", "area.high", "less than or equal to 100000"),
+        ("antenna.height=1e300", "antenna.height", "less than or equal to 100000"),
+        ("sensor.noise_std=[1e300, 1e300, 1e300]", "sensor.noise_std", "less than or equal to"),
+        ("antenna.opening_angle_deg=179.999999", "antenna.opening_angle_deg", "[0.1, 170]"),
+        ("agents.n_inclination=1000", "agents.n_inclination", "less than or equal to 360"),
+        ("sensor.clutter_rate=1e6", "sensor.clutter_rate", "less than or equal to 1000"),
+        ("filter.particles=1e9", "filter.particles", "less than or equal to 10000000"),
+        ("control.samples=1e9", "control.samples", "less than or equal to 100000000"),
+        ("control.iterations=1e7", "control.iterations", "less than or equal to 1000000"),
+        ("control.samples=1e7", "control.samples", "past the cap"),
+        ("steps=true", "steps", "must be an integer"),
+        ("steps='30'", "steps", "must be an integer"),
+        ("steps=2.5", "steps", "integer"),
+        ("antenna.height=true", "antenna.height", "must be a number"),
+        ("control.constraints=1", "control.constraints", "boolean"),
+        ("seed=-1", "seed", "greater than or equal to 0"),
+        ("area.high=[100, 100, 0.5]", "area", "at least 1 m"),
+        ("name='[/oops]'", "name", "not a safe folder name"),
+        ("name=../../escaped", "name", "not a safe folder name"),
+        ("name=/tmp/abs", "name", "not a safe folder name"),
+        (f"name={'x' * 300}", "name", "not a safe folder name"),
+    ],
+)
+def test_values_past_their_physical_bounds_are_refused_in_one_line(override, key, words):
+    with pytest.raises(ConfigError) as info:
+        load_scenario("paper-fig3", [override])
+    msg = str(info.value)
+    assert "\n" not in msg and len(msg) < 300
+    assert f"{key}" in msg and words in msg, msg
+    assert msg.startswith(f"--set {override[:20]}")  # blamed on the --set, not on the preset
+
+
+def test_a_float_that_is_an_integer_is_read_as_one_and_written_back_as_an_int():
+    s = load_scenario("paper-fig3", ["steps=5.0", "filter.particles=2e3"])
+    assert s.steps == 5 and s.filter.particles == 2000 and type(s.filter.particles) is int
+
+
+def test_numpy_integers_are_integers():
+    assert load_scenario("paper-fig3", seed=np.uint64(2**63 - 1), steps=np.int64(3)).seed == 2**63 - 1
+
+
+def test_the_bounds_themselves_are_accepted():
+    s = load_scenario(
+        "paper-fig3",
+        [
+            "area.low=[-1e5, -1e5, -1e5]", "area.high=[1e5, 1e5, 1e5]", "antenna.height=1e5",
+            "antenna.opening_angle_deg=170", "antenna.power_levels_db=[off, -200, 60]",
+            "antenna.interference_limit_db=60", "sensor.noise_std=[1e4, 3.141592653589793, 1e-6]",
+            "filter.birth_speed=1000", "agents.n_inclination=360", "control.iterations=1",
+        ],
+    )
+    assert s.antenna.levels_w == pytest.approx([0.0, 1e-20, 1e6])
+
+
+def test_displacement_bound_covers_eq3_and_the_table_estimate_bounds_the_problems_arrays():
+    from trackjam.config.limits import candidates_bound, estimate
+    from trackjam.control.problem import build_problem
+    from trackjam.radio.antenna import AntennaModel
+    from trackjam.world.moves import displacement_set
+
+    for radial in ([3.0], [1.0, 3.0, 5.0]):
+        for n_phi in range(1, 11):
+            for n_theta in range(1, 11):
+                assert len(displacement_set(radial, n_phi, n_theta)) == candidates_bound(len(radial), n_phi, n_theta)
+    assert candidates_bound(3, 8, 8) == 79 and candidates_bound(1, 4, 8) == 11  # the paper's two sets
+    s = load_scenario("paper-fig3", ["agents.radial_steps=[1.0, 2.0]"])
+    D = displacement_set(s.agents.radial_steps, s.agents.n_inclination, s.agents.n_azimuth)
+    problem = build_problem(
+        np.asarray(s.agents.initial, float), np.asarray(s.target.initial[:3], float), D,
+        AntennaModel.from_scenario(s), s.area.low, s.area.high, 2, True,
+    )
+    tables = problem.gain.nbytes + problem.p_d.nbytes
+    estimated = estimate(s)["memory_tables"][0]
+    assert tables == estimated  # every agent far from the walls keeps all its candidates
+
+
+def test_a_run_too_big_for_the_machine_is_refused_naming_the_key_that_grew_it(monkeypatch):
+    from trackjam.config import limits
+
+    monkeypatch.setattr(limits, "memory_budget", lambda: 50e6)
+    assert load_scenario("paper-fig3")  # about 7.5 MB
+    with pytest.raises(ConfigError, match=r"^--set agents.n_azimuth=128: agents.n_azimuth: a run would hold"):
+        load_scenario("paper-fig3", ["agents.n_azimuth=128"])
+    with pytest.raises(ConfigError, match=r"filter.particles: a run would hold about .* more than half"):
+        load_scenario("paper-fig3", ["filter.particles=200000"])
+    with pytest.raises(ConfigError, match=r"sensor.clutter_rate: a run would hold"):
+        load_scenario("paper-fig3", ["sensor.clutter_rate=1000", "steps=1000"])
+
+
+def test_the_filters_work_per_step_is_capped():
+    with pytest.raises(ConfigError, match=r"sensor.clutter_rate: one step would take about 3.6e\+09 operations \(filter\)"):
+        load_scenario("paper-fig3", ["filter.particles=1e6", "sensor.clutter_rate=1000"])
+
+
+def test_grasp_work_is_checked_only_for_grasp():
+    with pytest.raises(ConfigError, match="control.iterations: one step would take about"):
+        load_scenario("paper-fig3", ["control.iterations=100000"])
+    assert load_scenario("paper-fig3", ["control.iterations=100000", "control.solver=exact"])

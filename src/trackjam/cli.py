@@ -13,7 +13,30 @@ from typing import Callable, Optional
 
 import typer
 
-app = typer.Typer(
+class _Cli(typer.Typer):
+    """Typer whose usage errors (``--seed abc``, an unknown option) are one line and exit 2 too,
+    instead of a framed multi-line box."""
+
+    def __call__(self, *args, **kwargs):
+        if "standalone_mode" in kwargs:
+            return super().__call__(*args, **kwargs)
+        # typer may vendor its own click: take the exceptions from where its BadParameter lives
+        click_errors = sys.modules[typer.BadParameter.__module__]
+        try:
+            rv = super().__call__(*args, standalone_mode=False, **kwargs)
+        except click_errors.NoArgsIsHelpError as err:  # plain `trackjam`: the help, as click shows it
+            err.show()
+            sys.exit(err.exit_code)
+        except click_errors.ClickException as err:
+            typer.echo(f"trackjam: error: {' '.join(err.format_message().split())}", err=True)
+            sys.exit(err.exit_code)
+        except click_errors.Abort:
+            typer.echo("trackjam: interrupted", err=True)
+            sys.exit(130)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+app = _Cli(
     add_completion=False,
     no_args_is_help=True,
     help="Cooperative tracking and radio-jamming of a rogue drone by a team of pursuer drones.",
@@ -21,6 +44,21 @@ app = typer.Typer(
 
 SCENARIO_HELP = "A preset name (see `trackjam presets`) or a YAML/TOML scenario file."
 SET_HELP = "Override a scenario key, dotted: --set antenna.opening_angle_deg=120 (repeatable)."
+
+
+def _version(value: bool) -> None:
+    if value:
+        from trackjam import __version__
+
+        typer.echo(f"trackjam {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version and exit."),
+) -> None:
+    """Cooperative tracking and radio-jamming of a rogue drone by a team of pursuer drones."""
 
 
 def _fail(message: str) -> None:
@@ -47,10 +85,15 @@ def user_errors(fn: Callable) -> Callable:
 
 
 def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
+    """The validated scenario; its suspicious values are warned about, one line each on stderr."""
     from trackjam.config import load_scenario
+    from trackjam.config.warnings import scenario_warnings
 
     fields = {} if seed is None else {"seed": seed}
-    return load_scenario(scenario, overrides or [], **fields)
+    s = load_scenario(scenario, overrides or [], **fields)
+    for line in scenario_warnings(s):
+        typer.echo(f"trackjam: warning: {line}", err=True)
+    return s
 
 
 @app.command()
@@ -93,9 +136,10 @@ def validate(
 def _step_progress(total: int, label: str):
     """A rich bar on a terminal, one plain line per step otherwise. Returns (callback, close)."""
     if sys.stdout.isatty():
+        from rich.markup import escape
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-        bar = Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+        bar = Progress(TextColumn(escape(label)), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
         task = bar.add_task(label, total=total)
         bar.start()
         return (lambda t, n: bar.update(task, completed=t)), bar.stop

@@ -4,37 +4,108 @@ line naming the key and the problem."""
 
 from __future__ import annotations
 
+import difflib
+import re
 import tomllib
+import typing
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from trackjam.config.model import Scenario
 from trackjam.errors import ConfigError
 
-def _format_error(err: ValidationError) -> str:
-    parts = []
+MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and stray binaries
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML with two fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
+    string), and a key given twice in one mapping is an error instead of silently the last."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r} (line {key_node.start_mark.line + 1})", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep)
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def _yaml(text: str) -> Any:
+    return yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader)
+
+def _section_keys(loc: tuple) -> list[str]:
+    """The keys the section at ``loc`` accepts (empty when ``loc`` is not a section)."""
+    model: Any = Scenario
+    for part in loc:
+        fields = getattr(model, "model_fields", {})
+        if part not in fields:
+            return []
+        annotation = fields[part].annotation
+        model = next(
+            (a for a in [annotation, *typing.get_args(annotation)] if isinstance(a, type) and issubclass(a, BaseModel)),
+            None,
+        )
+    return list(getattr(model, "model_fields", {}))
+
+
+def _unknown_key(loc: tuple) -> str:
+    close = difflib.get_close_matches(str(loc[-1]), _section_keys(loc[:-1]), n=1, cutoff=0.6)
+    if not close:
+        return "unknown key"
+    return f"unknown key (did you mean {'.'.join(map(str, (*loc[:-1], close[0])))}?)"
+
+
+def _errors(err: ValidationError) -> list[tuple[str, str]]:
+    """(dotted key or "", message) of every problem pydantic found."""
+    out = []
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith("function-"))
-        msg = e["msg"]
-        if e["type"] == "extra_forbidden":
-            msg = "unknown key"
-        msg = msg.removeprefix("Value error, ")
-        parts.append(f"{loc}: {msg}" if loc else msg)
-    return "; ".join(parts)
+        loc = tuple(p for p in e["loc"] if not str(p).startswith("function-"))
+        msg = _unknown_key(loc) if e["type"] == "extra_forbidden" else e["msg"].removeprefix("Value error, ")
+        out.append((".".join(str(p) for p in loc), " ".join(msg.split())))
+    return out
 
 
-def validate_scenario(data: Any, source: str = "scenario") -> Scenario:
-    """Validate a mapping as a :class:`Scenario`, raising :class:`ConfigError` with one line."""
+def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
+    """The ``--set`` item that set ``key`` (or, for a problem between keys, that the message names)."""
+    for set_key, item in overridden.items():
+        if key:
+            if key == set_key or key.startswith(set_key + ".") or set_key.startswith(key + "."):
+                return item
+        elif re.search(rf"(^|[\s(]){re.escape(set_key)}\b", msg):
+            return item
+    return None
+
+
+def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str, str] | None = None) -> Scenario:
+    """Validate a mapping as a :class:`Scenario`, raising :class:`ConfigError` with one line.
+
+    ``overridden`` maps the dotted keys set by ``--set`` to the item that set them: a problem
+    with such a key is blamed on the ``--set``, not on ``source``."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: the scenario must be a mapping of keys, got {type(data).__name__}")
     try:
         return Scenario.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(f"{source}: {_format_error(err)}") from None
+        by_source: dict[str, list[str]] = {}
+        for key, msg in _errors(err):
+            item = _blamed(key, msg, overridden or {})
+            where = f"--set {item if len(item) <= 60 else item[:57] + '...'}" if item else source
+            by_source.setdefault(where, []).append(f"{key}: {msg}" if key else msg)
+        raise ConfigError("; ".join(f"{where}: " + "; ".join(problems) for where, problems in by_source.items())) from None
 
 
 def preset_names() -> list[str]:
@@ -43,33 +114,53 @@ def preset_names() -> list[str]:
 
 
 def _preset_data(name: str) -> dict:
-    return yaml.safe_load(resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text())
+    return _yaml(resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text())
 
 
-def _read_file(path: Path) -> dict:
+def _read_text(path: Path) -> str:
+    """The file's text, read at most ``MAX_FILE_BYTES`` deep (``/dev/zero`` never ends)."""
     if not path.exists():
         raise ConfigError(f"{path}: no such file (and no preset of that name; see `trackjam presets`)")
     if path.is_dir():
         raise ConfigError(f"{path}: is a folder, not a scenario file")
-    text = path.read_text()
     try:
-        if path.suffix.lower() == ".toml":
-            data = tomllib.loads(text)
-        else:
-            data = yaml.safe_load(text)
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot be read ({err.strerror or err})") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ConfigError(f"{path}: larger than {MAX_FILE_BYTES // 1_000_000} MB, not a scenario file")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise ConfigError(
+            f"{path}: not UTF-8 text (byte {err.start} is {raw[err.start]:#04x}); a binary or UTF-16 file?"
+        ) from None
+    if "\x00" in text:
+        raise ConfigError(f"{path}: holds NUL characters; a binary or UTF-16 file?")
+    return text
+
+
+def _read_file(path: Path) -> dict:
+    text = _read_text(path)
+    toml = path.suffix.lower() == ".toml"
+    try:
+        data = tomllib.loads(text) if toml else _yaml(text)
     except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
-        first = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise ConfigError(f"{path}: not valid {'TOML' if path.suffix.lower() == '.toml' else 'YAML'}: {first}") from None
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
+            first = err.problem
+        raise ConfigError(f"{path}: not valid {'TOML' if toml else 'YAML'}: {first}") from None
     if data is None:
-        data = {}
+        raise ConfigError(f"{path}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
     if not isinstance(data, dict):
-        raise ConfigError(f"{path}: the scenario must be a mapping of keys")
+        raise ConfigError(f"{path}: the scenario must be a mapping of keys, got {type(data).__name__}")
     return data
 
 
 def _parse_value(text: str) -> Any:
     try:
-        return yaml.safe_load(text)
+        return _yaml(text)
     except yaml.YAMLError:
         return text
 
@@ -102,6 +193,11 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
     return data
 
 
+def overridden_keys(overrides: list[str] | None) -> dict[str, str]:
+    """Dotted key -> the ``--set`` item that set it (the last one wins, as in :func:`apply_overrides`)."""
+    return {item.partition("=")[0].strip(): item for item in overrides or [] if "=" in item}
+
+
 def _deep_copy(d: Any) -> Any:
     if isinstance(d, dict):
         return {k: _deep_copy(v) for k, v in d.items()}
@@ -130,7 +226,7 @@ def load_scenario(
     data = apply_overrides(data, overrides)
     for key, value in fields.items():
         set_dotted(data, key.replace("__", "."), value)
-    return validate_scenario(data, label)
+    return validate_scenario(data, label, overridden_keys(overrides))
 
 
 def scenario_to_dict(s: Scenario) -> dict:

@@ -4,22 +4,74 @@ paper's symbol in its description (unknown keys are errors)."""
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
+    StrictBool,
     field_validator,
     model_validator,
 )
 
+from trackjam.config.limits import (
+    DBW_MAX,
+    DBW_MIN,
+    MAX_ACCEL_VAR,
+    MAX_AGENTS,
+    MAX_ANGLE_DEG,
+    MAX_LENGTH,
+    MAX_SPEED,
+    MAX_STEPS,
+    MIN_ANGLE_DEG,
+    MIN_EXTENT,
+    check_resources,
+    check_name,
+)
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Prob = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
-Vec3 = tuple[Finite, Finite, Finite]
+
+def _number(v: Any) -> Any:
+    # pydantic's lax mode reads True as 1 and "5" as 5: a value of the wrong kind is a mistake
+    if isinstance(v, (bool, str, bytes)):
+        raise ValueError(f"must be a number, got {type(v).__name__} {v!r}")
+    if isinstance(v, float) and not math.isfinite(v):
+        raise ValueError(f"must be a finite number, got {v}")
+    return v
+
+
+def _integer(v: Any) -> Any:
+    if isinstance(v, float) and v.is_integer() and abs(v) < 2**63:
+        return int(v)
+    if isinstance(v, (bool, str, bytes)) or not isinstance(v, numbers.Integral):
+        raise ValueError(f"must be an integer, got {type(v).__name__} {v!r}")
+    return int(v)
+
+
+def Real(ge: float | None = None, le: float | None = None, gt: float | None = None) -> Any:
+    """A finite float within bounds (bools and strings refused)."""
+    return Annotated[float, BeforeValidator(_number), Field(ge=ge, le=le, gt=gt, allow_inf_nan=False)]
+
+
+def Integer(ge: int, le: int) -> Any:
+    """An integer within bounds (bools, strings and fractions refused)."""
+    return Annotated[int, BeforeValidator(_integer), Field(ge=ge, le=le)]
+
+
+Coord = Real(ge=-MAX_LENGTH, le=MAX_LENGTH)
+Length = Real(gt=0, le=MAX_LENGTH)
+Speed = Real(ge=-MAX_SPEED, le=MAX_SPEED)
+Prob = Real(ge=0, le=1)
+DBW = Real(ge=DBW_MIN, le=DBW_MAX)
+AccelVar = Real(ge=0, le=MAX_ACCEL_VAR)
+Step = Integer(1, MAX_STEPS)
+Vec3 = tuple[Coord, Coord, Coord]
+# unbounded but finite numbers; a new key should rather say its physical bounds with Real(...)
+Finite = Real()
+PosFloat = Real(gt=0)
+NonNegFloat = Real(ge=0)
 
 
 class _Model(BaseModel):
@@ -29,47 +81,56 @@ class _Model(BaseModel):
 class Area(_Model):
     """The surveillance box; agents may not leave it, the target is reflected at its walls."""
 
-    low: Vec3 = Field((0.0, 0.0, 0.0), description="lower corner [m]")
-    high: Vec3 = Field((100.0, 100.0, 100.0), description="upper corner [m]")
+    low: Vec3 = Field((0.0, 0.0, 0.0), description="lower corner [m], each coordinate within +-1e5")
+    high: Vec3 = Field(
+        (100.0, 100.0, 100.0), description="upper corner [m], each coordinate within +-1e5 and at least 1 m above low"
+    )
 
     @model_validator(mode="after")
     def _ordered(self) -> "Area":
         for k in range(3):
-            if not self.high[k] > self.low[k]:
-                raise ValueError("high must exceed low on every axis")
+            if not self.high[k] - self.low[k] >= MIN_EXTENT:
+                raise ValueError(f"high must exceed low by at least {MIN_EXTENT:g} m on every axis")
         return self
 
 
 class Stochastic(_Model):
     """Bernoulli Markov existence of the truth target (Section III-A table)."""
 
-    birth_prob: Prob = Field(0.02, description="p_b: probability the target is born at a step")
-    survival_prob: Prob = Field(0.98, description="p_s: probability the target survives a step")
+    birth_prob: Prob = Field(0.02, description="p_b: probability the target is born at a step, in [0, 1]")
+    survival_prob: Prob = Field(0.98, description="p_s: probability the target survives a step, in [0, 1]")
 
 
 class Response(_Model):
     """The target's fail-safe under jamming (ours, beyond the paper)."""
 
-    threshold_db: Finite = Field(-40.0, description="received power at the target that jams it [dBW]")
-    steps: int = Field(3, ge=1, description="consecutive jammed steps before the fail-safe")
+    threshold_db: DBW = Field(-40.0, description=f"received power at the target that jams it [dBW], in [{DBW_MIN:g}, {DBW_MAX:g}]")
+    steps: Step = Field(3, description=f"consecutive jammed steps before the fail-safe, in [1, {MAX_STEPS}]")
     action: Literal["land", "hover", "return"] = Field("land", description="fail-safe behaviour")
-    speed: PosFloat = Field(2.0, description="speed while landing or returning [m/step]")
-    home: Vec3 | None = Field(None, description="home point for `return` [m]; default: area's low corner at z=0")
+    speed: Real(gt=0, le=MAX_SPEED) = Field(2.0, description=f"speed while landing or returning [m/step], in (0, {MAX_SPEED:g}]")
+    home: Vec3 | None = Field(
+        None, description="home point for `return` [m], coordinates within +-1e5; default: area's low corner at z=0"
+    )
 
 
 class Target(_Model):
     """The truth target (Section III-A)."""
 
-    initial: tuple[Finite, Finite, Finite, Finite, Finite, Finite] | None = Field(
+    initial: tuple[Coord, Coord, Coord, Speed, Speed, Speed] | None = Field(
         (20.0, 20.0, 20.0, 1.5, 2.0, 1.7),
-        description="x_0 = [x, y, z, vx, vy, vz] [m, m/s]; null: position uniform in the area, velocity uniform in +-filter.birth_speed",
+        description="x_0 = [x, y, z, vx, vy, vz] [m, m/s], speeds within +-1000 m/s; null: position uniform in "
+        "the area, velocity uniform in +-filter.birth_speed",
     )
-    appears: int = Field(1, ge=1, description="scripted existence: first step present")
-    disappears: int | None = Field(None, ge=1, description="scripted existence: last step present (null: never)")
-    occlusions: list[tuple[int, int]] = Field(
-        default_factory=list, description="inclusive step ranges: present but undetectable"
+    appears: Step = Field(1, description=f"scripted existence: first step present, in [1, {MAX_STEPS}] (after the last step: a warning)")
+    disappears: Step | None = Field(
+        None, description=f"scripted existence: last step present, in [1, {MAX_STEPS}] (null: never)"
     )
-    accel_var: NonNegFloat = Field(0.5, description="Sigma_v = accel_var * I3, acceleration covariance [m^2/s^4]")
+    occlusions: list[tuple[Step, Step]] = Field(
+        default_factory=list, max_length=1000, description="inclusive step ranges: present but undetectable (at most 1000; past the last step: a warning)"
+    )
+    accel_var: AccelVar = Field(
+        0.5, description=f"Sigma_v = accel_var * I3, acceleration covariance [m^2/s^4], in [0, {MAX_ACCEL_VAR:g}]"
+    )
     stochastic: Stochastic | None = Field(None, description="Bernoulli Markov existence instead of the script")
     response: Response | None = Field(None, description="jamming response (ours); null: off, as in the paper")
     walls: Literal["reflect", "leave"] = Field(
@@ -97,12 +158,17 @@ class Agents(_Model):
     initial: list[Vec3] = Field(
         [(30.0, 30.0, 30.0), (20.0, 10.0, 10.0), (10.0, 15.0, 15.0)],
         min_length=1,
-        description="u_0^j, initial agent positions [m]; N = their number",
+        max_length=MAX_AGENTS,
+        description=f"u_0^j, initial agent positions [m]; N = their number, 1 to {MAX_AGENTS} (two at one place: a warning)",
     )
-    initial_aim: Vec3 | None = Field(None, description="where the antennas point at t=0 [m]; default: target's initial position")
-    radial_steps: list[PosFloat] = Field([1.0, 3.0, 5.0], min_length=1, description="Delta_R, radial step sizes [m]")
-    n_inclination: int = Field(8, ge=1, description="N_phi; inclination step is 2*pi/N_phi (MODEL.md)")
-    n_azimuth: int = Field(8, ge=1, description="N_theta; azimuth step is 2*pi/N_theta")
+    initial_aim: Vec3 | None = Field(
+        None, description="where the antennas point at t=0 [m], coordinates within +-1e5; default: target's initial position"
+    )
+    radial_steps: list[Real(gt=0, le=1e4)] = Field(
+        [1.0, 3.0, 5.0], min_length=1, max_length=32, description="Delta_R, radial step sizes [m], each in (0, 1e4], at most 32"
+    )
+    n_inclination: Integer(1, 360) = Field(8, description="N_phi; inclination step is 2*pi/N_phi (docs/model.md), in [1, 360]")
+    n_azimuth: Integer(1, 360) = Field(8, description="N_theta; azimuth step is 2*pi/N_theta, in [1, 360]")
 
 
 def _parse_level(v: Any) -> float | None:
@@ -117,28 +183,39 @@ def _parse_level(v: Any) -> float | None:
             raise ValueError(f"power level {v!r} is neither a number in dBW nor 'off'") from None
     if not isinstance(v, (int, float)) or not math.isfinite(v):
         raise ValueError(f"power level {v!r} must be a finite number in dBW or 'off'")
+    if not DBW_MIN <= v <= DBW_MAX:
+        raise ValueError(f"power level {v:g} dBW lies outside [{DBW_MIN:g}, {DBW_MAX:g}] dBW")
     return float(v)
 
 
 class Antenna(_Model):
     """The conic directional antenna that detects and jams (Eqs. 9-10, 13)."""
 
-    height: PosFloat = Field(40.0, description="h_a, cone height along its axis [m]")
-    opening_angle_deg: float = Field(80.0, description="theta_a, full opening angle of the cone [deg], in (0, 180)")
-    r0: PosFloat = Field(6.0, description="R_0, radius of full gain [m]")
-    path_loss_exponent: PosFloat = Field(2.0, description="n_e, path-loss exponent")
-    p_d_max: Prob = Field(0.95, description="p_D^max, detection probability at full power within R_0")
-    power_levels_db: list[Any] = Field(
-        ["off", -50.0, -7.0, 0.5], min_length=1, description="L, transmit levels [dBW]; 'off' is 0 W"
+    height: Length = Field(40.0, description=f"h_a, cone height along its axis [m], in (0, {MAX_LENGTH:g}]")
+    opening_angle_deg: Real() = Field(
+        80.0,
+        description=f"theta_a, full opening angle of the cone [deg], in [{MIN_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}] "
+        "(a wider cone reaches past any area; below 5 a warning: radians by mistake?)",
     )
-    interference_limit_db: Finite = Field(-40.0, description="delta, interference tolerance of every agent [dBW]")
+    r0: Length = Field(6.0, description=f"R_0, radius of full gain [m], in (0, {MAX_LENGTH:g}]")
+    path_loss_exponent: Real(gt=0, le=10) = Field(2.0, description="n_e, path-loss exponent, in (0, 10]")
+    p_d_max: Prob = Field(0.95, description="p_D^max, detection probability at full power within R_0, in [0, 1]")
+    power_levels_db: list[Any] = Field(
+        ["off", -50.0, -7.0, 0.5],
+        min_length=1,
+        max_length=33,
+        description=f"L, transmit levels [dBW], each in [{DBW_MIN:g}, {DBW_MAX:g}]; 'off' is 0 W; at most 32 on",
+    )
+    interference_limit_db: DBW = Field(
+        -40.0, description=f"delta, interference tolerance of every agent [dBW], in [{DBW_MIN:g}, {DBW_MAX:g}]"
+    )
     pointing: Literal["truth", "aim"] = Field("truth", description="where the antenna points while transmitting: `truth` (the paper, Sec. IV-C) or `aim` (ours: the planning aim x_bar)")
 
     @field_validator("opening_angle_deg")
     @classmethod
     def _angle(cls, v: float) -> float:
-        if not math.isfinite(v) or not 0 < v < 180:
-            raise ValueError(f"opening angle must be in (0, 180) deg, got {v}")
+        if not MIN_ANGLE_DEG <= v <= MAX_ANGLE_DEG:
+            raise ValueError(f"opening angle must be in [{MIN_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}] deg, got {v:g}")
         return v
 
     @field_validator("power_levels_db")
@@ -167,38 +244,44 @@ class Antenna(_Model):
 class Sensor(_Model):
     """The range/azimuth/inclination measurements (Eqs. 6-8)."""
 
-    noise_std: Vec3 = Field(
+    noise_std: tuple[Real(ge=1e-3, le=1e4), Real(ge=1e-6, le=math.pi), Real(ge=1e-6, le=math.pi)] = Field(
         (0.8, math.pi / 50, math.pi / 50),
-        description="Sigma_w diagonal as standard deviations: [rho m, azimuth rad, inclination rad]",
+        description="Sigma_w diagonal as standard deviations: [rho m in [1e-3, 1e4], azimuth rad and inclination "
+        "rad in [1e-6, pi]]",
     )
-    clutter_rate: NonNegFloat = Field(3.0, description="lambda_c, mean clutter points per agent per step")
-
-    @field_validator("noise_std")
-    @classmethod
-    def _positive(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
-        if any(s <= 0 for s in v):
-            raise ValueError("noise standard deviations must be > 0")
-        return v
+    clutter_rate: Real(ge=0, le=1000) = Field(3.0, description="lambda_c, mean clutter points per agent per step, in [0, 1000]")
 
 
 class Cue(_Model):
     """A prior the team starts from (ours): where the antennas first point, e.g. from a ground radar."""
 
-    existence: Prob = Field(0.9, description="e_0, initial existence probability of every filter")
-    position_std: PosFloat = Field(2.0, description="standard deviation of the initial position around agents.initial_aim [m]")
-    velocity_std: PosFloat = Field(2.0, description="standard deviation of the initial velocity around 0 [m/s]")
+    existence: Prob = Field(0.9, description="e_0, initial existence probability of every filter, in [0, 1]")
+    position_std: Length = Field(
+        2.0, description=f"standard deviation of the initial position around agents.initial_aim [m], in (0, {MAX_LENGTH:g}]"
+    )
+    velocity_std: Real(gt=0, le=MAX_SPEED) = Field(
+        2.0, description=f"standard deviation of the initial velocity around 0 [m/s], in (0, {MAX_SPEED:g}]"
+    )
 
 
 class Filter(_Model):
     """Each agent's Bernoulli particle filter (Section V-A)."""
 
-    birth_prob: Prob = Field(0.02, description="p_b used by the filter")
-    survival_prob: Prob = Field(0.98, description="p_s used by the filter")
-    particles: int = Field(10000, ge=10, description="particles of the surviving density")
-    birth_particles: int = Field(2000, ge=1, description="particles of the birth density per step")
+    birth_prob: Prob = Field(0.02, description="p_b used by the filter, in [0, 1]")
+    survival_prob: Prob = Field(0.98, description="p_s used by the filter, in [0, 1]")
+    particles: Integer(10, 10_000_000) = Field(
+        10000, description="particles of the surviving density, in [10, 1e7] (and the memory check)"
+    )
+    birth_particles: Integer(1, 10_000_000) = Field(
+        2000, description="particles of the birth density per step, in [1, 1e7] (and the memory check)"
+    )
     birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t: `uniform` in the area (the paper) or `measurement` (ours: around the last scan's measurements)")
-    birth_speed: NonNegFloat = Field(3.0, description="v_b: birth velocity uniform in +-v_b per axis [m/s]")
-    accel_var: NonNegFloat | None = Field(None, description="filter's Sigma_v scale; null: the target's")
+    birth_speed: Real(ge=0, le=MAX_SPEED) = Field(
+        3.0, description=f"v_b: birth velocity uniform in +-v_b per axis [m/s], in [0, {MAX_SPEED:g}]"
+    )
+    accel_var: AccelVar | None = Field(
+        None, description=f"filter's Sigma_v scale [m^2/s^4], in [0, {MAX_ACCEL_VAR:g}]; null: the target's"
+    )
     walls: Literal["reflect", "none"] = Field(
         "reflect",
         description="the filter's motion model at the area's walls: `reflect`, as the truth does (ours), or `none`: "
@@ -210,7 +293,7 @@ class Filter(_Model):
 class Fusion(_Model):
     """Fusion of the agents' estimates (end of Section V-A)."""
 
-    feedback: bool = Field(True, description="agents take the fused existence and redraw particles from the fused estimate")
+    feedback: StrictBool = Field(True, description="agents take the fused existence and redraw particles from the fused estimate")
     existence: Literal["mean", "evidence"] = Field(
         "mean",
         description="fused existence: `mean` of the agents' e (the paper) or `evidence` (ours: product of the "
@@ -222,28 +305,28 @@ class Control(_Model):
     """The joint choice of moves and levels (Sections V-B to V-D)."""
 
     solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="`greedy` (Eq. 11), `grasp` (the paper, Sec. V-D) or `exact` (ours: the proven optimum of Eqs. 12-13)")
-    at_least: int = Field(2, ge=1, description="n of Xi^N_n: at least n of N agents detect")
-    constraints: bool = Field(True, description="enforce the interference constraints, Eq. (13)")
-    samples: int = Field(10000, ge=1, description="n_s, GRASP joint samples per iteration")
-    iterations: int = Field(100, ge=1, description="n_I, GRASP iterations")
-    neighbours: int = Field(6, ge=2, description="GRASP: size of the list of nearest displacements u-, u+ are drawn from (ours)")
-    threads: int | None = Field(
+    at_least: Integer(1, MAX_AGENTS) = Field(2, description="n of Xi^N_n: at least n of N agents detect, in [1, N]")
+    constraints: StrictBool = Field(True, description="enforce the interference constraints, Eq. (13)")
+    samples: Integer(1, 100_000_000) = Field(
+        10000, description="n_s, GRASP joint samples per iteration, in [1, 1e8] (and the work check)"
+    )
+    iterations: Integer(1, 1_000_000) = Field(100, description="n_I, GRASP iterations, in [1, 1e6] (and the work check)")
+    neighbours: Integer(2, 1000) = Field(
+        6, description="GRASP: size of the list of nearest displacements u-, u+ are drawn from (ours), in [2, 1000]"
+    )
+    threads: Integer(1, 1024) | None = Field(
         None,
-        ge=1,
-        description="threads running the agents' GRASP searches side by side (same result for any value); "
+        description="threads (1 to 1024) running the agents' GRASP searches side by side (same result for any value); "
         "null: one per agent up to the CPU count, or 1 inside experiment workers",
     )
-    time_limit_s: float = Field(
+    time_limit_s: Real(gt=0, le=3600) = Field(
         1.0,
-        gt=0,
-        le=3600,
-        allow_inf_nan=False,
         description="`exact`: wall-time budget of one step's search [s] (ours); when it runs out the best plan "
         "found is used and the solution reports its certified gap to the optimum",
     )
     fallback: Literal["hover", "search"] = Field(
         "hover",
-        description="when no agent believes in the target: `hover` (MODEL.md: hover, keep the last aim, highest "
+        description="when no agent believes in the target: `hover` (docs/model.md: hover, keep the last aim, highest "
         "levels the constraints allow) or `search` (ours: plan moves and levels with the solver at the last track "
         "coasted by Eq. (1), whose Gaussian also reseeds the filters)",
     )
@@ -272,17 +355,21 @@ class Comms(_Model):
 class Metrics(_Model):
     """Tracking error (Section VI) and track quality judged by the truth (ours)."""
 
-    ospa_order: PosFloat = Field(2.0, description="p of OSPA")
-    ospa_cutoff: PosFloat = Field(10.0, description="c of OSPA [m]")
-    gate: PosFloat = Field(
-        5.0, description="track quality (ours): held = confirmed and within gate of the truth [m]"
+    ospa_order: Real(ge=1, le=10) = Field(2.0, description="p of OSPA, in [1, 10]")
+    ospa_cutoff: Length = Field(10.0, description=f"c of OSPA [m], in (0, {MAX_LENGTH:g}]")
+    gate: Length = Field(
+        5.0, description=f"track quality (ours): held = confirmed and within gate of the truth [m], in (0, {MAX_LENGTH:g}]"
     )
 
 
 class Scenario(_Model):
-    name: str = Field("scenario", description="name of the scenario")
-    steps: int = Field(30, ge=1, description="number of steps of dT = 1 s")
-    seed: int = Field(1, ge=0, description="the one seed every random choice flows from")
+    name: str = Field(
+        "scenario",
+        description="name of the scenario and of its output folder runs/NAME-seedS: 1 to 100 letters, digits, "
+        "'_', '-', '+' or '.', starting with a letter or digit",
+    )
+    steps: Step = Field(30, description=f"number of steps of dT = 1 s, in [1, {MAX_STEPS}]")
+    seed: Integer(0, 2**63 - 1) = Field(1, description="the one seed every random choice flows from, in [0, 2^63 - 1]")
     area: Area = Field(default_factory=Area)
     target: Target = Field(default_factory=Target)
     agents: Agents = Field(default_factory=Agents)
@@ -293,6 +380,12 @@ class Scenario(_Model):
     control: Control = Field(default_factory=Control)
     comms: Comms = Field(default_factory=Comms)
     metrics: Metrics = Field(default_factory=Metrics)
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, v: str) -> str:
+        check_name(v)
+        return v
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scenario":
@@ -310,6 +403,7 @@ class Scenario(_Model):
             x = self.target.initial
             if any(not lo[k] <= x[k] <= hi[k] for k in range(3)):
                 raise ValueError(f"target.initial position {list(x[:3])} lies outside the area")
+        check_resources(self)
         return self
 
     # Derived quantities used everywhere.

@@ -1,0 +1,157 @@
+"""Physical bounds of the configuration and the resource check: a scenario that validates can
+run on this machine without overflow, NaN or an allocation it cannot hold.
+
+The bounds are generous for drones (lengths up to 100 km, speeds up to 1000 m/s, powers between
+-200 and 60 dBW); the resource check estimates, from the scenario alone, the memory a run holds
+at once (particles x agents, the planning tables N x N x C x C, the logs) and the work of one
+step (particles x measurements x agents, GRASP samples x iterations x agents), and refuses a
+scenario past half the machine's memory or past ``MAX_STEP_WORK`` operations a step, naming the
+key that grew it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+MAX_LENGTH = 1e5  # m: coordinates, heights, radii, standard deviations of positions
+MAX_SPEED = 1e3  # m/s
+MAX_ACCEL_VAR = 1e4  # m^2/s^4, an acceleration standard deviation of 100 m/s^2
+MIN_EXTENT = 1.0  # m: the smallest side of the area
+DBW_MIN, DBW_MAX = -200.0, 60.0  # dBW: 1e-20 W to 1 MW
+MIN_ANGLE_DEG, MAX_ANGLE_DEG = 0.1, 170.0  # deg; past 170 the clutter range h_a / cos(theta_a / 2) explodes
+MAX_STEPS = 100_000
+MAX_AGENTS = 64
+MAX_STEP_WORK = 1e9  # elementary operations a step (about 5 to 30 s on one core)
+NAME_MAX = 100
+
+_NAME = re.compile(r"[^\W][\w.+-]*")
+
+# the defaults the check compares a key to when it says which key made a scenario too big
+_DEFAULTS = {
+    "agents.initial": 3, "agents.radial_steps": 3, "agents.n_inclination": 8, "agents.n_azimuth": 8,
+    "filter.particles": 10_000, "filter.birth_particles": 2000, "sensor.clutter_rate": 3.0,
+    "steps": 30, "control.samples": 10_000, "control.iterations": 100,
+}
+
+
+def check_name(name: str) -> None:
+    """A scenario name names a folder: no separators, no markup, no leading dot, not too long."""
+    if not 1 <= len(name) <= NAME_MAX or not _NAME.fullmatch(name) or name.startswith("_"):
+        shown = name if len(name) <= 40 else name[:37] + "..."
+        raise ValueError(
+            f"{shown!r} is not a safe folder name: use 1 to {NAME_MAX} letters, digits, '_', '-', '+' or '.', "
+            "starting with a letter or digit"
+        )
+
+
+def memory_budget() -> float:
+    """Half of the memory this process may use: the machine's, or its cgroup's limit if lower [bytes]."""
+    total = 8e9
+    try:
+        total = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        pass
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        if limit.isdigit():
+            total = min(total, float(limit))
+    except OSError:
+        pass
+    return total / 2
+
+
+def measurements_bound(clutter_rate: float) -> float:
+    """Measurements per scan that Poisson(lambda_c) clutter plus the target nearly never exceeds."""
+    return clutter_rate + 6 * math.sqrt(clutter_rate) + 1
+
+
+def candidates_bound(radial_steps: int, n_inclination: int, n_azimuth: int) -> int:
+    """Eq. (3)'s distinct displacements plus hover, counted without building them.
+
+    Per radial step: the poles (phi = 0, and phi = pi when N_phi is even) once each, and every
+    other inclination with all N_theta azimuths; phi and 2 pi - phi give the same vectors when
+    N_theta is even (the azimuth turns by pi), so then only phi in (0, pi) counts."""
+    poles = 1 + (n_inclination % 2 == 0)
+    if n_azimuth % 2 == 0:
+        others = math.ceil(n_inclination / 2) - 1
+    else:
+        others = n_inclination - poles
+    return radial_steps * (poles + others * n_azimuth) + 1
+
+
+def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
+    """Named resource figures of a scenario, each with the keys that drive it.
+
+    ``memory_*`` in bytes, ``work_*`` in elementary operations of one step."""
+    N = len(s.agents.initial)
+    C = candidates_bound(len(s.agents.radial_steps), s.agents.n_inclination, s.agents.n_azimuth)
+    L = len(s.antenna.power_levels_db)
+    m = measurements_bound(s.sensor.clutter_rate)
+    n, n_b = s.filter.particles, s.filter.birth_particles
+    moves = ("agents.n_inclination", "agents.n_azimuth", "agents.radial_steps", "agents.initial")
+    particles = ("filter.particles", "filter.birth_particles", "agents.initial")
+    out = {
+        # gain[i, j, ci, cj] and p_d[i, c, l] of the planning problem (float64)
+        "memory_tables": (8.0 * (N * N * C * C + N * C * L), moves),
+        # each agent keeps n particles of 6 states (+ weights, + the prediction's noise); one update
+        # at a time holds n + n_b of them several times over and the birth proposal's n_b x m offsets
+        "memory_particles": (
+            N * n * 8.0 * 14 + (n + n_b) * 8.0 * 30 + n_b * m * 24.0,
+            particles + ("sensor.clutter_rate",),
+        ),
+        # the measurement log (6 columns) and the per-agent log (about 25 columns)
+        "memory_logs": (s.steps * N * 8.0 * (6 * m + 25), ("steps", "sensor.clutter_rate", "agents.initial")),
+        "work_filter": (N * (n + n_b) * (m + 1.0), particles + ("sensor.clutter_rate",)),
+        "work_tables": (float(N * N * C * C), moves),
+    }
+    if s.control.solver == "grasp":
+        out["work_grasp"] = (
+            float(N) * s.control.samples * s.control.iterations * N,
+            ("control.samples", "control.iterations", "agents.initial"),
+        )
+    return out
+
+
+def _value(s: Any, key: str) -> float:
+    node = s
+    for part in key.split("."):
+        node = getattr(node, part)
+    return float(len(node)) if isinstance(node, (list, tuple)) else float(node)
+
+
+def _culprit(s: Any, keys: tuple[str, ...]) -> str:
+    """The key furthest above its default (relative), the one a user most likely set too high."""
+    return max(keys, key=lambda k: _value(s, k) / _DEFAULTS[k])
+
+
+def _bytes(b: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if b >= size:
+            return f"{b / size:.3g} {unit}"
+    return f"{b / 1e3:.3g} kB"
+
+
+def check_resources(s: Any) -> None:
+    """Raise ValueError (one line, naming the key) when a run of ``s`` cannot fit this machine."""
+    figures = estimate(s)
+    memory = {k: v for k, v in figures.items() if k.startswith("memory_")}
+    total = sum(b for b, _ in memory.values())
+    budget = memory_budget()
+    if total > budget:
+        _, keys = max(memory.values(), key=lambda bk: bk[0])
+        key = _culprit(s, keys)
+        raise ValueError(
+            f"{key}: a run would hold about {_bytes(total)} of memory, more than half of this machine's "
+            f"({_bytes(2 * budget)}); lower {key}"
+        )
+    for name, (ops, keys) in figures.items():
+        if name.startswith("work_") and ops > MAX_STEP_WORK:
+            key = _culprit(s, keys)
+            raise ValueError(
+                f"{key}: one step would take about {ops:.2g} operations ({name.removeprefix('work_')}), "
+                f"past the cap of {MAX_STEP_WORK:.0g}; lower {key}"
+            )

@@ -1,0 +1,32 @@
+"""Suspicious but legal values: each gives one line of warning and the run goes on."""
+
+from __future__ import annotations
+
+from trackjam.config.model import Scenario
+
+NARROW_ANGLE_DEG = 5.0
+
+
+def scenario_warnings(s: Scenario) -> list[str]:
+    """One line per suspicious value of ``s``, naming its key."""
+    out = []
+    theta = s.antenna.opening_angle_deg
+    if theta < NARROW_ANGLE_DEG:
+        out.append(
+            f"antenna.opening_angle_deg: {theta:g} deg is a very narrow cone (radians by mistake? "
+            f"{theta:g} rad is {theta * 57.29577951308232:.0f} deg)"
+        )
+    t = s.target
+    if s.target.stochastic is None and t.appears > s.steps:
+        out.append(f"target.appears: step {t.appears} comes after the last step ({s.steps}); the target never appears")
+    late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps]
+    if late:
+        out.append(f"target.occlusions: {', '.join(late)} reach past the last step ({s.steps})")
+    at: dict[tuple, list[int]] = {}
+    for j, u in enumerate(s.agents.initial):
+        at.setdefault(tuple(u), []).append(j)
+    for u, js in at.items():
+        if len(js) > 1:
+            which = ", ".join(f"[{j}]" for j in js)
+            out.append(f"agents.initial: {which} start at the same position {list(u)}")
+    return out
