@@ -5,7 +5,7 @@ import pytest
 
 from trackjam.config import load_scenario
 from trackjam.control import build_problem, solve
-from trackjam.world.moves import scenario_displacements
+from trackjam.simulation.build import displacements as scenario_displacements
 
 
 @pytest.fixture(scope="module")

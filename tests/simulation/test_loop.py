@@ -7,7 +7,7 @@ from trackjam.config import load_scenario
 from trackjam.metrics.ospa import ospa
 from trackjam.radio.antenna import AntennaModel, detection_probability, interference_matrix, received_power
 from trackjam.simulation.loop import simulate
-from trackjam.world.moves import scenario_displacements
+from trackjam.simulation.build import displacements as scenario_displacements
 
 STEP_COLUMNS = [
     "t", "target_exists", "target_detectable", "truth_x", "truth_y", "truth_z", "existence",

@@ -5,6 +5,7 @@ import pytest
 
 from trackjam.config import load_scenario
 from trackjam.world.motion import cv_matrices, cv_step
+from trackjam.simulation.build import target_params
 from trackjam.world.target import TruthTarget, reflect
 
 
@@ -31,7 +32,7 @@ def test_reflection_keeps_the_target_inside_and_flips_velocity():
 
 
 def _run(scenario, steps):
-    tgt = TruthTarget(scenario, np.random.default_rng(5))
+    tgt = TruthTarget(target_params(scenario), np.random.default_rng(5))
     out = []
     for t in range(1, steps + 1):
         tgt.step(t)
@@ -65,7 +66,7 @@ def test_stochastic_existence_follows_survival_probability():
     s = load_scenario("paper-fig3", ["target.stochastic={birth_prob: 0.0, survival_prob: 0.9}", "target.occlusions=[]"])
     lifetimes = []
     for seed in range(400):
-        tgt = TruthTarget(s, np.random.default_rng(seed))
+        tgt = TruthTarget(target_params(s), np.random.default_rng(seed))
         n = 0
         for t in range(1, 200):
             tgt.step(t)
@@ -82,7 +83,7 @@ def test_jamming_response_lands_the_target_after_k_steps():
         "paper-fig3",
         ["target.response={threshold_db: -40, steps: 2, action: land, speed: 5}", "target.accel_var=0"],
     )
-    tgt = TruthTarget(s, np.random.default_rng(0))
+    tgt = TruthTarget(target_params(s), np.random.default_rng(0))
     tgt.step(1)
     tgt.apply_jamming(1, 1e-3)
     tgt.step(2)

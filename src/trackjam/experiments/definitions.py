@@ -25,7 +25,7 @@ from trackjam.config import (
 )
 from trackjam.errors import ConfigError
 from trackjam.experiments.trials import TrialDraw, draw_trial, simulation_seed, trial_fields
-from trackjam.world.moves import scenario_displacements
+from trackjam.simulation.build import displacements as scenario_displacements
 
 BASE_PRESET = "paper-fig3"
 

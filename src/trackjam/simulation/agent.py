@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackjam.config import Scenario
 from trackjam.estimation.bernoulli import BernoulliFilter, Estimate
 from trackjam.estimation.fusion import CONFIRM
 from trackjam.world.motion import cv_coast
@@ -65,14 +64,15 @@ class Agent:
         return cv_coast(self.last_track, self.last_track_cov, accel_var, self.steps_since_track)
 
     @classmethod
-    def create(cls, index: int, scenario: Scenario, position, aim, seeds: list[np.random.SeedSequence]) -> "Agent":
-        filter_seed, sensor_seed, plan_seed = seeds
-        bf = BernoulliFilter(scenario, np.random.default_rng(filter_seed))
-        cue = scenario.filter.cue
+    def create(cls, index: int, position, aim, bf: BernoulliFilter, cue: tuple[float, float, float] | None,
+               sensor_seed: np.random.SeedSequence, plan_seed: np.random.SeedSequence) -> "Agent":
+        """An agent at ``position`` aimed at ``aim``; ``cue`` = (e_0, position std, velocity std)
+        starts its filter from a Gaussian around the aim (ours, ``filter.cue``)."""
         if cue is not None:
+            existence, pos_std, vel_std = cue
             mean = np.concatenate([np.asarray(aim, dtype=float), np.zeros(3)])
-            cov = np.diag([cue.position_std**2] * 3 + [cue.velocity_std**2] * 3)
-            bf.reset_to(cue.existence, mean, cov)
+            cov = np.diag([pos_std**2] * 3 + [vel_std**2] * 3)
+            bf.reset_to(existence, mean, cov)
         return cls(
             index=index,
             position=np.asarray(position, dtype=float),

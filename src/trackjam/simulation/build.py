@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import partial
+from typing import Callable
 
 import numpy as np
 
 from trackjam.config import Scenario
 from trackjam.control.planning import PlanSettings
+from trackjam.estimation.bernoulli import BernoulliFilter
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
 from trackjam.world.moves import displacement_set
+from trackjam.world.target import Response, TargetParams
 
 
 def default_threads(n_agents: int) -> int:
@@ -24,8 +28,38 @@ def default_threads(n_agents: int) -> int:
     return max(1, min(n_agents, os.cpu_count() or 1))
 
 
+def target_params(s: Scenario) -> TargetParams:
+    tg, low = s.target, np.asarray(s.area.low, dtype=float)
+    r = tg.response
+    response = None if r is None else Response(
+        threshold_w=10 ** (r.threshold_db / 10), steps=r.steps, action=r.action, speed=r.speed,
+        home=np.asarray(r.home if r.home is not None else (low[0], low[1], low[2]), dtype=float),
+    )
+    return TargetParams(
+        low=low,
+        high=np.asarray(s.area.high, dtype=float),
+        initial=None if tg.initial is None else np.asarray(tg.initial, dtype=float),
+        draw_speed=float(s.filter.birth_speed),  # a random draw is drawn as the filters' birth is
+        appears=tg.appears,
+        disappears=tg.disappears,
+        occlusions=tuple(tuple(o) for o in tg.occlusions),
+        accel_var=float(tg.accel_var),
+        stochastic=None if tg.stochastic is None else (tg.stochastic.birth_prob, tg.stochastic.survival_prob),
+        response=response,
+        walls=tg.walls,
+    )
+
+
+def displacements(s: Scenario) -> np.ndarray:
+    """Eq. (3)'s displacement set of the scenario, hover first."""
+    a = s.agents
+    return displacement_set(a.radial_steps, a.n_inclination, a.n_azimuth)
+
+
 @dataclass(frozen=True)
 class Components:
+    name: str
+    steps: int
     seed: int
     n_agents: int
     initial_positions: np.ndarray  # (N, 3) u_0 [m]
@@ -41,6 +75,9 @@ class Components:
     ospa_order: float
     plan: PlanSettings
     team: TeamSettings
+    target: TargetParams
+    make_filter: Callable[[np.random.Generator], BernoulliFilter]  # one agent's filter from its stream
+    cue: tuple[float, float, float] | None  # filter.cue as (e_0, position std [m], velocity std [m/s])
 
     def seed_tree(self) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]], np.random.SeedSequence]:
         """One root seed -> the truth's stream, three streams per agent (filter, sensor, plan) and
@@ -53,6 +90,8 @@ class Components:
 def build(s: Scenario) -> Components:
     c = s.control
     return Components(
+        name=s.name,
+        steps=s.steps,
         seed=s.seed,
         n_agents=s.n_agents,
         initial_positions=np.asarray(s.agents.initial, dtype=float),
@@ -60,7 +99,7 @@ def build(s: Scenario) -> Components:
         low=np.asarray(s.area.low, dtype=float),
         high=np.asarray(s.area.high, dtype=float),
         antenna=AntennaModel.from_scenario(s),
-        displacements=displacement_set(s.agents.radial_steps, s.agents.n_inclination, s.agents.n_azimuth),
+        displacements=displacements(s),
         pointing=s.antenna.pointing,
         noise_std=s.sensor.noise_std,
         clutter_rate=float(s.sensor.clutter_rate),
@@ -77,4 +116,8 @@ def build(s: Scenario) -> Components:
             loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps),
             failures=tuple((f.agent, f.step, f.mode) for f in s.comms.failures),
         ),
+        target=target_params(s),
+        make_filter=partial(BernoulliFilter, s),
+        cue=None if s.filter.cue is None else (s.filter.cue.existence, s.filter.cue.position_std,
+                                               s.filter.cue.velocity_std),
     )

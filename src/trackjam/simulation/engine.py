@@ -11,9 +11,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from trackjam.config import Scenario
 from trackjam.estimation.fusion import CONFIRM
 from trackjam.metrics.ospa import ospa
 from trackjam.metrics.summary import summarise
@@ -24,6 +25,9 @@ from trackjam.simulation.build import Components, build
 from trackjam.simulation.logs import RunLog
 from trackjam.simulation.team import Team
 from trackjam.world.target import TruthTarget
+
+if TYPE_CHECKING:  # the scenario is read in one place, simulation/build.py
+    from trackjam.config import Scenario
 
 
 @dataclass(frozen=True)
@@ -70,22 +74,25 @@ class Simulation:
 
     def reset(self) -> None:
         """Back to t = 0 with fresh random streams from the scenario's seed."""
-        c, s = self.c, self.scenario
+        c = self.c
         truth_seed, agent_seeds, comms_seed = c.seed_tree()
-        self.truth = TruthTarget(s, np.random.default_rng(truth_seed))
+        self.truth = TruthTarget(c.target, np.random.default_rng(truth_seed))
         aim = c.initial_aim if c.initial_aim is not None else self.truth.first_state[:3]
-        agents = [Agent.create(j, s, u, aim, agent_seeds[j]) for j, u in enumerate(c.initial_positions)]
+        agents = [
+            Agent.create(j, u, aim, c.make_filter(np.random.default_rng(filter_seed)), c.cue, sensor_seed, plan_seed)
+            for j, (u, (filter_seed, sensor_seed, plan_seed)) in enumerate(zip(c.initial_positions, agent_seeds))
+        ]
         self.team = Team(agents, c.team, np.random.default_rng(comms_seed))
         self.log = RunLog(n_agents=len(agents))
         self.t = 0
 
     @property
     def done(self) -> bool:
-        return self.t >= self.scenario.steps
+        return self.t >= self.c.steps
 
     def step(self, actions: tuple[np.ndarray, np.ndarray] | None = None) -> StepRecord:
         if self.done:
-            raise RuntimeError(f"the run has ended (step {self.t} of {self.scenario.steps}); call reset()")
+            raise RuntimeError(f"the run has ended (step {self.t} of {self.c.steps}); call reset()")
         c, team, truth = self.c, self.team, self.truth
         t0 = time.perf_counter()
         self.t = t = self.t + 1
@@ -163,8 +170,8 @@ class Simulation:
 
     def result(self) -> RunResult:
         """The logs so far, as column arrays, and their summary."""
-        s = self.scenario
+        c = self.c
         steps, agents, meas = self.log.columns()
-        summary = summarise(steps, agents, name=s.name, seed=s.seed, n_agents=s.n_agents,
-                            solver=s.control.solver, downed_at=self.truth.downed_at)
-        return RunResult(s, steps, agents, meas, summary)
+        summary = summarise(steps, agents, name=c.name, seed=c.seed, n_agents=c.n_agents,
+                            solver=c.plan.solver, downed_at=self.truth.downed_at)
+        return RunResult(self.scenario, steps, agents, meas, summary)

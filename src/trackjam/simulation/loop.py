@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from trackjam.config import Scenario
 from trackjam.simulation.engine import RunResult, Simulation
+
+if TYPE_CHECKING:
+    from trackjam.config import Scenario
 
 __all__ = ["RunResult", "simulate"]
 

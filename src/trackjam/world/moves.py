@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackjam.config import Scenario
-
 
 def displacement_set(radial_steps, n_inclination: int, n_azimuth: int) -> np.ndarray:
     """The admissible displacements, shape (K, 3), hover first, then in Eq. (3)'s loop order."""
@@ -29,11 +27,6 @@ def displacement_set(radial_steps, n_inclination: int, n_azimuth: int) -> np.nda
                     seen.add(key)
                     out.append(v)
     return np.array(out)
-
-
-def scenario_displacements(s: Scenario) -> np.ndarray:
-    a = s.agents
-    return displacement_set(a.radial_steps, a.n_inclination, a.n_azimuth)
 
 
 def in_area(p, low, high) -> np.ndarray:

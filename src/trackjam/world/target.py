@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from trackjam.config import Scenario
 from trackjam.world.motion import cv_step
 
 
@@ -30,11 +29,40 @@ def reflect(x: np.ndarray, low, high) -> np.ndarray:
     return x
 
 
+@dataclass(frozen=True)
+class Response:
+    """The fail-safe under jamming (ours): after ``steps`` consecutive steps at or above
+    ``threshold_w`` received, ``action`` ("land" | "hover" | "return") at ``speed`` m/step."""
+
+    threshold_w: float
+    steps: int
+    action: str
+    speed: float
+    home: np.ndarray  # (3,) where `return` flies to [m]
+
+
+@dataclass(frozen=True)
+class TargetParams:
+    """What the truth target needs (Section IV-A and ours)."""
+
+    low: np.ndarray  # (3,) area's lower corner [m]
+    high: np.ndarray  # (3,) upper corner [m]
+    initial: np.ndarray | None  # x_0 (6,); None: a random draw
+    draw_speed: float  # a random draw's velocity is uniform in +-draw_speed per axis [m/s]
+    appears: int
+    disappears: int | None
+    occlusions: tuple[tuple[int, int], ...]
+    accel_var: float  # Sigma_v = accel_var I3
+    stochastic: tuple[float, float] | None  # (p_b, p_s) of the Bernoulli chain; None: scripted
+    response: Response | None
+    walls: str  # "reflect" | "leave"
+
+
 @dataclass
 class TruthTarget:
     """The rogue drone as the world sees it. ``step(t)`` advances it to step ``t`` (1-based)."""
 
-    scenario: Scenario
+    params: TargetParams
     rng: np.random.Generator
     state: np.ndarray | None = None  # None while absent
     exists: bool = False
@@ -45,31 +73,30 @@ class TruthTarget:
     _pending_initial: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        s = self.scenario
-        self.low = np.asarray(s.area.low, dtype=float)
-        self.high = np.asarray(s.area.high, dtype=float)
-        if s.target.initial is not None:
-            self._pending_initial = np.asarray(s.target.initial, dtype=float)
+        p = self.params
+        self.low, self.high = p.low, p.high
+        if p.initial is not None:
+            self._pending_initial = np.asarray(p.initial, dtype=float)
         else:
             self._pending_initial = self.draw_birth()
 
     def draw_birth(self) -> np.ndarray:
-        v = self.scenario.filter.birth_speed
+        v = self.params.draw_speed
         pos = self.rng.uniform(self.low, self.high)
         vel = self.rng.uniform(-v, v, size=3)
         return np.concatenate([pos, vel])
 
     # -- existence --------------------------------------------------------------------------
     def _scripted_exists(self, t: int) -> bool:
-        tg = self.scenario.target
+        tg = self.params
         return t >= tg.appears and (tg.disappears is None or t <= tg.disappears)
 
     def _occluded(self, t: int) -> bool:
-        return any(a <= t <= b for a, b in self.scenario.target.occlusions)
+        return any(a <= t <= b for a, b in self.params.occlusions)
 
     def step(self, t: int) -> None:
         """Advance to step ``t``: existence, then motion (or the fail-safe), then occlusion."""
-        tg = self.scenario.target
+        tg = self.params
         # Every draw is made at every step so the stream does not depend on the path taken.
         u_exist = self.rng.uniform()
         birth = self.draw_birth()
@@ -86,13 +113,13 @@ class TruthTarget:
             self.exists = now
         else:
             if self.exists:
-                if u_exist < tg.stochastic.survival_prob:
+                if u_exist < tg.stochastic[1]:
                     self.state = self._move(moved)
                 else:
                     self.exists, self.state = False, None
             else:
                 first = self._pending_initial is not None and t >= tg.appears
-                if first or (t >= tg.appears and u_exist < tg.stochastic.birth_prob):
+                if first or (t >= tg.appears and u_exist < tg.stochastic[0]):
                     self.state = self._pending_initial.copy() if first else birth
                     self._pending_initial = None
                     self.exists = True
@@ -104,7 +131,7 @@ class TruthTarget:
         self.detectable = self.exists and not self._occluded(t)
 
     def _move(self, moved: np.ndarray) -> np.ndarray:
-        tg = self.scenario.target
+        tg = self.params
         if self.downed_at is not None and tg.response is not None:
             return self._fail_safe()
         if tg.walls == "reflect":
@@ -112,7 +139,7 @@ class TruthTarget:
         return moved
 
     def _fail_safe(self) -> np.ndarray:
-        r = self.scenario.target.response
+        r = self.params.response
         x = self.state.copy()
         if r.action == "hover":
             x[3:] = 0.0
@@ -120,8 +147,7 @@ class TruthTarget:
         if r.action == "land":
             goal = np.array([x[0], x[1], self.low[2]])
         else:
-            home = r.home if r.home is not None else (self.low[0], self.low[1], self.low[2])
-            goal = np.asarray(home, dtype=float)
+            goal = r.home
         d = goal - x[:3]
         dist = np.linalg.norm(d)
         stepv = d if dist <= r.speed else d / dist * r.speed
@@ -132,10 +158,10 @@ class TruthTarget:
     def apply_jamming(self, t: int, received_w: float) -> None:
         """Record the power the target received at step ``t``; start the fail-safe when the
         response is on and the power stayed >= threshold for the set number of steps."""
-        r = self.scenario.target.response
+        r = self.params.response
         if r is None or not self.exists or self.downed_at is not None:
             return
-        if received_w >= 10 ** (r.threshold_db / 10):
+        if received_w >= r.threshold_w:
             self.jammed_run += 1
         else:
             self.jammed_run = 0
