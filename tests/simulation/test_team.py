@@ -125,3 +125,22 @@ def test_a_guarded_teammate_is_protected_by_the_exact_plan(seed):
     levels_w = ant.levels_w[sol.level]
     at_guard = received_power(guard[0], moved, np.repeat(aim[None], 2, 0), levels_w[:2], ant).sum()
     assert at_guard < ant.delta_w
+
+
+def test_the_log_says_whether_the_plan_is_proven_optimal():
+    exact = run()
+    tracking = exact.steps["mode"] == "track"
+    assert tracking.any()
+    assert np.all(exact.steps["optimal"][tracking]) and np.all(exact.steps["gap"][tracking] == 0)
+    grasp = simulate(load_scenario("paper-fig3", ["control.solver=grasp", "control.samples=50", "control.iterations=3",
+                                                  "steps=3", "filter.particles=500", "filter.birth_particles=100"]))
+    assert not grasp.steps["optimal"].any() and np.all(np.isnan(grasp.steps["gap"]))
+
+
+def test_an_exact_search_out_of_time_logs_its_certified_gap():
+    six = [[30, 30, 30], [20, 10, 10], [10, 15, 15], [25, 25, 12], [15, 28, 22], [28, 12, 26]]
+    r = simulate(load_scenario("paper-fig3", FAST[1:] + [f"agents.initial={six}", "control.solver=exact",
+                                                         "control.time_limit_s=0.0001", "steps=2"]))
+    stopped = ~r.steps["optimal"] & (r.steps["mode"] == "track")
+    assert stopped.any()
+    assert np.all(r.steps["gap"][stopped] > 0)

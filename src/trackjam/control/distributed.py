@@ -33,6 +33,8 @@ class Proposal:
     moves: np.ndarray  # (len(agents),) displacement indices
     levels: np.ndarray  # (len(agents),) level indices
     objective: float  # Xi of the plan at its aim; NaN when it has none
+    optimal: bool = False  # proven optimal (exact within its budget)
+    gap: float = float("nan")  # certified bound on optimum - objective; NaN: no certificate
 
     def control_of(self, agent: int) -> tuple[int, int]:
         k = self.agents.index(agent)
@@ -40,13 +42,13 @@ class Proposal:
 
 
 def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Sequence[np.random.Generator],
-                 samples: int, iterations: int, neighbours: int, threads: int = 1
-                 ) -> list[tuple[Solution, float]]:
+                 samples: int, iterations: int, neighbours: int, threads: int = 1,
+                 time_limit_s: float | None = 1.0) -> list[tuple[Solution, float]]:
     """The plan each searching agent (problem row ``rows[k]``, stream ``rngs[k]``) finds, with
     the value it announces (GRASP: its search's own value, which ranks the plans as the paper's
     all-apply-the-best does)."""
     if solver != "grasp":
-        sol = solve(problem, solver, list(rngs))
+        sol = solve(problem, solver, list(rngs), time_limit_s=time_limit_s)
         return [(sol, sol.objective) for _ in rows]
     neigh, n_neigh = neighbour_lists(problem, neighbours)
     N = problem.n_agents

@@ -30,6 +30,7 @@ class PlanSettings:
     neighbours: int
     threads: int
     fallback: str  # "hover" | "search"
+    time_limit_s: float | None = 1.0  # exact's budget per search [s]
 
 
 def planning_aim(predicted: Sequence) -> np.ndarray | None:

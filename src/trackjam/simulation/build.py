@@ -109,6 +109,7 @@ def build(s: Scenario) -> Components:
             solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.samples,
             iterations=c.iterations, neighbours=c.neighbours,
             threads=c.threads or default_threads(s.n_agents), fallback=c.fallback,
+            time_limit_s=c.time_limit_s,
         ),
         team=TeamSettings(
             existence_rule=s.fusion.existence, feedback=s.fusion.feedback,

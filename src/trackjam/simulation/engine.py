@@ -117,8 +117,8 @@ class Simulation:
             step=dict(
                 t=t, target_exists=truth.exists, target_detectable=truth.detectable,
                 truth=truth.position, existence=existence, estimate=est, ospa=err, aim=report.x_bar,
-                mode=report.mode, objective=report.objective, target_received_w=float(tx.to_target_w.sum()),
-                solve_s=solve_s, step_s=time.perf_counter() - t0,
+                mode=report.mode, objective=report.objective, optimal=report.optimal, gap=report.gap,
+                target_received_w=float(tx.to_target_w.sum()), solve_s=solve_s, step_s=time.perf_counter() - t0,
             ),
             agents=dict(
                 t=t, prev=prev, pos=team.positions, level_index=levels, power_w=tx.level_w,

@@ -60,6 +60,8 @@ class Decision:
     x_bar: np.ndarray | None  # its planning aim of Eq. (12)
     objective: float  # Xi of the adopted plan (NaN unless tracking)
     heard: int  # agents whose predictions of this step it planned with, itself included
+    optimal: bool = False  # the adopted plan is proven optimal (exact within its budget)
+    gap: float = float("nan")  # its certified gap to the optimum; NaN: no certificate
 
 
 class Exchange:
@@ -162,7 +164,8 @@ class Team:
             best = adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
             move, level = best.control_of(j)
             objective = best.objective if best.mode == "track" else np.nan
-            decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)))
+            decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)),
+                                    best.optimal, best.gap)
         return decisions, time.perf_counter() - t0
 
     def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings) -> list[Proposal]:
@@ -201,11 +204,12 @@ class Team:
                 problem = _guarded(problem, len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
                                  [self.agents[j].plan_rng for j in members], plan.samples, plan.iterations,
-                                 plan.neighbours, plan.threads)
+                                 plan.neighbours, plan.threads, plan.time_limit_s)
             mode = "search" if searching else "track"
             for j, (sol, value) in zip(members, found):
                 n = len(rows)
-                out.append(Proposal(j, rows, mode, aim.copy(), sol.move[:n], sol.level[:n], value))
+                out.append(Proposal(j, rows, mode, aim.copy(), sol.move[:n], sol.level[:n], value,
+                                    sol.optimal, sol.gap))
         return sorted(out, key=lambda p: p.sender)
 
     def apply(self, decisions: list[Decision], displacements: np.ndarray) -> None:
