@@ -189,12 +189,38 @@ def run(
     add("mean power at target [W]", f"{m['target_received_w_mean']:.3g}")
     add("mean interference at agents [W]", f"{m['agent_received_w_mean']:.3g}")
     add("mean transmit power [W]", f"{m['transmit_w_mean']:.3g}")
-    add("steps with fused existence > 0.5", f"{m['tracked_steps']}/{m['steps']}")
+    for label, value in _quality_rows(m):
+        add(label, value)
     add("time per step [ms]", f"{1000 * m['step_s_mean']:.1f}")
     if m.get("downed_at") is not None:
         add("target downed at step", str(m["downed_at"]))
     Console(width=100).print(table)
     typer.echo(f"wrote {len(files)} files to {out}")
+
+
+def _share(v: float | None) -> str:
+    return "-" if v is None else f"{100 * v:.0f} %"
+
+
+def _quality_rows(m: dict) -> list[tuple[str, str]]:
+    """The run table's track quality judged by the truth (README, "Track quality judged by the
+    truth"): a confirmed track that has slipped off the target counts as a false track."""
+    gate, n = f"{m['gate_m']:g}", m["detectable_steps"]
+    reacq = m["reacquisition_steps"]
+    if not reacq:
+        again = "no undetectable spell"
+    else:
+        again = ", ".join("never" if r is None else f"after {r}" for r in reacq) + " [steps]"
+    first = m["first_acquisition_steps"]
+    return [
+        (f"held (confirmed, within {gate} m) / detectable steps", f"{m['held_steps']}/{n}  {_share(m['held_share'])}"),
+        (f"false track (confirmed, > {gate} m off)", f"{m['false_track_steps']}/{n}  {_share(m['false_track_share'])}"),
+        ("missed (not confirmed)", f"{m['missed_steps']}/{n}  {_share(m['missed_share'])}"),
+        ("phantom (confirmed, target hidden or absent)", f"{m['phantom_steps']} steps"),
+        ("first held [steps after first detectable]", "never" if first is None else str(first)),
+        ("re-acquired after each hidden spell", again),
+        (f"ceiling: a chaser within {m['ceiling_d_m']:g} m", _share(m["ceiling_share"])),
+    ]
 
 
 @app.command()

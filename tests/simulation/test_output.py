@@ -35,6 +35,12 @@ def test_run_writes_every_file(tmp_path):
     assert steps["t"] == [1, 2, 3, 4]
     assert np.mean(steps["ospa"]) == pytest.approx(summary["ospa_mean"])
     assert "mean OSPA" in r.stdout  # the closing table
+    # its track quality is the summary's, judged by the truth, never "existence > 0.5"
+    n = summary["detectable_steps"]
+    assert "held (confirmed, within 5 m) / detectable steps" in r.stdout
+    assert f"{summary['held_steps']}/{n}" in r.stdout and f"{summary['missed_steps']}/{n}" in r.stdout
+    assert "ceiling: a chaser within 8 m" in r.stdout and "existence > 0.5" not in r.stdout
+    assert steps["quality"].count("held") == summary["held_steps"]
     assert "step 4/4" in r.stdout  # one plain line per step when not on a terminal
     # the same scenario again into the same folder is allowed and reproduces the logs
     r2 = trackjam("run", "paper-fig3", "--out", str(out), *sets(FAST))

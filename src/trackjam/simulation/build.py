@@ -73,6 +73,8 @@ class Components:
     clutter_rate: float
     ospa_cutoff: float
     ospa_order: float
+    gate: float  # metrics.gate, track quality judged by the truth [m]
+    max_step: float  # max(Delta_R), the clairvoyant chaser's step [m]
     plan: PlanSettings
     team: TeamSettings
     target: TargetParams
@@ -105,6 +107,8 @@ def build(s: Scenario) -> Components:
         clutter_rate=float(s.sensor.clutter_rate),
         ospa_cutoff=float(s.metrics.ospa_cutoff),
         ospa_order=float(s.metrics.ospa_order),
+        gate=float(s.metrics.gate),
+        max_step=float(max(s.agents.radial_steps)),
         plan=PlanSettings(
             solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.samples,
             iterations=c.iterations, neighbours=c.neighbours,

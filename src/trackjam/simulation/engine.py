@@ -83,7 +83,7 @@ class Simulation:
             for j, (u, (filter_seed, sensor_seed, plan_seed)) in enumerate(zip(c.initial_positions, agent_seeds))
         ]
         self.team = Team(agents, c.team, np.random.default_rng(comms_seed))
-        self.log = RunLog(n_agents=len(agents))
+        self.log = RunLog(n_agents=len(agents), gate=c.gate)
         self.t = 0
 
     @property
@@ -173,5 +173,6 @@ class Simulation:
         c = self.c
         steps, agents, meas = self.log.columns()
         summary = summarise(steps, agents, name=c.name, seed=c.seed, n_agents=c.n_agents,
-                            solver=c.plan.solver, downed_at=self.truth.downed_at)
+                            solver=c.plan.solver, downed_at=self.truth.downed_at, gate=c.gate,
+                            initial=c.initial_positions, max_step=c.max_step, low=c.low, high=c.high)
         return RunResult(self.scenario, steps, agents, meas, summary)

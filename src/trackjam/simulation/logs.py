@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from trackjam.metrics.track_quality import CLASSES, step_classes
+
 NAN3 = (np.nan, np.nan, np.nan)
 
 
@@ -20,8 +22,9 @@ def _xyz(prefix: str, v) -> dict:
 class RunLog:
     """Accumulates one row per step, per (step, agent) and per measurement."""
 
-    def __init__(self, n_agents: int) -> None:
+    def __init__(self, n_agents: int, gate: float = 5.0) -> None:
         self.n = n_agents
+        self.gate = gate  # metrics.gate [m], for the steps' `quality` column
         self.steps: list[dict] = []
         self.agents: dict[str, list] = {}
         self.meas: dict[str, list] = {k: [] for k in ("t", "agent", "rho", "azimuth", "inclination", "from_target")}
@@ -81,6 +84,8 @@ class RunLog:
 
     def columns(self) -> tuple[dict, dict, dict]:
         steps = {k: np.array([r[k] for r in self.steps]) for k in self.steps[0]} if self.steps else {}
+        if steps:
+            steps = _with_quality(steps, self.gate)
         agents = {k: np.concatenate(v) for k, v in self.agents.items()}
         dtypes = {"t": np.int64, "agent": np.int64, "from_target": bool}
         meas = {
@@ -88,6 +93,18 @@ class RunLog:
             for k, v in self.meas.items()
         }
         return steps, agents, meas
+
+
+def _with_quality(steps: dict, gate: float) -> dict:
+    """The steps' columns with ``quality`` (the track-quality class name of each step, judged by
+    the truth within ``gate`` m) placed right after ``ospa``."""
+    quality = np.asarray(CLASSES)[step_classes(steps, gate)]
+    out = {}
+    for k, v in steps.items():
+        out[k] = v
+        if k == "ospa":
+            out["quality"] = quality
+    return out
 
 
 def write_parquet(columns: dict[str, np.ndarray], path: Path) -> None:

@@ -1,7 +1,9 @@
 """The figure of one run, after the paper's Fig. 3 (a)-(f), drawn from the run's logs.
 
 Panels: (a) 3D trajectories, (b) transmit level per agent, (c) who jams whom, (d) received
-powers in dB (target and interference, with delta), (e) fused existence probability, (f) OSPA.
+powers in dB (target and interference, with delta), (e) fused existence probability, (f) OSPA,
+and under it a band with each step's track quality judged by the truth (ours), so that no panel
+lets a confirmed track that has slipped off the target pass for a tracked one.
 Steps where the target exists but cannot be detected (occlusion) are shaded on every time axis.
 
 The helpers at the top turn the logs into arrays of the paper's quantities and are shared with
@@ -24,6 +26,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from trackjam.config import Scenario  # noqa: E402
+from trackjam.metrics.track_quality import CLASSES, step_classes  # noqa: E402
 from trackjam.radio.antenna import AntennaModel, interference_matrix  # noqa: E402
 
 Columns = Mapping[str, np.ndarray]
@@ -36,6 +39,13 @@ TRUTH_COLOUR = "black"
 ESTIMATE_COLOUR = "#00bcd4"
 TARGET_POWER_COLOUR = "#d62728"
 OCCLUSION_COLOUR = "0.55"
+# One colour per track-quality class, in the order of CLASSES.
+QUALITY_COLOURS = {
+    "held": "#2ca02c", "false_track": "#ff7f0e", "missed": "#d62728", "phantom": "#9467bd", "silent": "0.85",
+}
+QUALITY_LABELS = {
+    "held": "held", "false_track": "false track", "missed": "missed", "phantom": "phantom", "silent": "silent",
+}
 
 
 def agent_colour(j: int) -> str:
@@ -117,10 +127,10 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
     fig = plt.figure(figsize=(17, 11), layout="constrained")
     outer = fig.add_gridspec(1, 2, width_ratios=[1.0, 1.15])
     ax3d = fig.add_subplot(outer[0], projection="3d")
-    right = outer[1].subgridspec(5, 1, height_ratios=[1.1, 1.0, 1.3, 1.0, 1.0])
+    right = outer[1].subgridspec(6, 1, height_ratios=[1.1, 1.0, 1.3, 1.0, 1.0, 0.28])
     axes = [fig.add_subplot(right[0])]
-    axes += [fig.add_subplot(right[k], sharex=axes[0]) for k in range(1, 5)]
-    ax_level, ax_jam, ax_power, ax_exist, ax_ospa = axes
+    axes += [fig.add_subplot(right[k], sharex=axes[0]) for k in range(1, 6)]
+    ax_level, ax_jam, ax_power, ax_exist, ax_ospa, ax_quality = axes
 
     _panel_trajectories(ax3d, steps, agents, scenario, T, N)
     _panel_levels(ax_level, agents, scenario, t, T, N)
@@ -128,6 +138,7 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
     _panel_powers(ax_power, steps, agents, scenario, t, T, N)
     _panel_existence(ax_exist, steps, agents, t, T, N)
     _panel_ospa(ax_ospa, steps, scenario, t)
+    _panel_quality(ax_quality, steps, scenario, t)
 
     occ = occluded_steps(steps)
     for ax in axes:
@@ -138,7 +149,7 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
-    ax_ospa.set_xlabel("time step t  (dT = 1 s)")
+    ax_quality.set_xlabel("time step t  (dT = 1 s)")
     handles, _ = ax_level.get_legend_handles_labels()
     if len(occ):
         handles.append(Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded"))
@@ -275,3 +286,19 @@ def _panel_ospa(ax, steps, scenario, t) -> None:
     ax.set_ylabel("OSPA [m]")
     ax.set_title(f"(f) tracking error OSPA(p={p:g}, c={c:g} m)", loc="left", fontsize=10)
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+
+
+def _panel_quality(ax, steps, scenario, t) -> None:
+    """Track quality judged by the truth, one coloured cell per step (README, "Track quality
+    judged by the truth"): held (confirmed, within metrics.gate of the truth), false track
+    (confirmed, further off), missed (detectable, not confirmed), phantom (confirmed while the
+    target is hidden or absent), silent (no report then)."""
+    gate = scenario.metrics.gate
+    names = np.asarray(CLASSES)[step_classes(steps, gate)]
+    for k, name in zip(t, names):
+        ax.axvspan(k - 0.5, k + 0.5, color=QUALITY_COLOURS[name], lw=0, zorder=1)
+    ax.set_ylim(0, 1)
+    ax.set_yticks([])
+    ax.set_title(f"(g) track quality judged by the truth (gate {gate:g} m)", loc="left", fontsize=10)
+    handles = [Patch(color=QUALITY_COLOURS[c], label=QUALITY_LABELS[c]) for c in CLASSES]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.6), fontsize=7, frameon=False, ncol=2)

@@ -1,0 +1,55 @@
+"""A run's summary carries the track quality judged by the truth and the clairvoyant ceiling,
+and its steps log the per-step class: all three agree with the pure functions on a real run."""
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.metrics.ceiling import clairvoyant_ceiling
+from trackjam.metrics.track_quality import CLASSES, step_classes, track_quality
+from trackjam.simulation.loop import simulate
+
+# a short Fig. 3 run hidden for two steps, so every class and a re-acquisition can occur
+SHORT = ["steps=10", "control.solver=exact", "filter.particles=1000", "filter.birth_particles=300",
+         "target.occlusions=[[4, 5]]"]
+
+
+@pytest.fixture(scope="module", params=[5.0, 0.4])
+def run(request):
+    s = load_scenario("paper-fig3", SHORT + [f"metrics.gate={request.param}"])
+    return s, simulate(s)
+
+
+def test_the_steps_log_classes_every_step_as_step_classes_does(run):
+    s, r = run
+    expected = np.asarray(CLASSES)[step_classes(r.steps, s.metrics.gate)]
+    assert r.steps["quality"].tolist() == expected.tolist()
+    # columns stay in log order: the class follows the OSPA it refines
+    names = list(r.steps)
+    assert names.index("quality") == names.index("ospa") + 1
+    # the occluded steps are never held, false or missed
+    hidden = r.steps["quality"][3:5]
+    assert set(hidden) <= {"phantom", "silent"}
+
+
+def test_the_summary_holds_track_quality_and_the_ceiling_of_its_own_truth(run):
+    s, r = run
+    q = track_quality(r.steps, s.metrics.gate)
+    assert {k: r.summary[k] for k in q} == q
+    truth = np.stack([r.steps[f"truth_{a}"] for a in "xyz"], axis=1)
+    ceiling = clairvoyant_ceiling(truth, r.steps["target_detectable"], s.agents.initial,
+                                  max(s.agents.radial_steps), s.area.low, s.area.high)
+    assert r.summary["ceiling_share"] == ceiling.share and r.summary["ceiling_d_m"] == 8.0
+    counts = {c: int(np.sum(r.steps["quality"] == c)) for c in CLASSES}
+    assert r.summary["held_steps"] == counts["held"]
+    assert r.summary["detectable_steps"] == counts["held"] + counts["false_track"] + counts["missed"] == 8
+    # a confirmed report is either on the target, off it, or about a hidden target
+    assert r.summary["confirmed_steps"] == counts["held"] + counts["false_track"] + counts["phantom"]
+
+
+def test_a_tighter_gate_never_holds_more():
+    s = load_scenario("paper-fig3", SHORT)
+    r = simulate(s)
+    wide, tight = track_quality(r.steps, 5.0), track_quality(r.steps, 0.4)
+    assert tight["held_steps"] <= wide["held_steps"]
+    assert tight["held_steps"] + tight["false_track_steps"] == wide["held_steps"] + wide["false_track_steps"]
