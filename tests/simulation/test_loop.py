@@ -6,20 +6,13 @@ import pytest
 from trackjam.config import load_scenario
 from trackjam.metrics.ospa import ospa
 from trackjam.radio.antenna import AntennaModel, detection_probability, interference_matrix, received_power
+from trackjam.simulation import schema
 from trackjam.simulation.loop import simulate
 from trackjam.simulation.build import displacements as scenario_displacements
 
-STEP_COLUMNS = [
-    "t", "target_exists", "target_detectable", "truth_x", "truth_y", "truth_z", "existence",
-    "est_x", "est_y", "est_z", "ospa", "aim_x", "aim_y", "aim_z", "objective",
-    "target_received_w", "solve_s",
-]
-AGENT_COLUMNS = [
-    "t", "agent", "prev_x", "prev_y", "prev_z", "x", "y", "z", "level_index", "power_w",
-    "point_x", "point_y", "point_z", "p_d", "detected", "measurements", "existence",
-    "interference_w", "jammed", "to_target_w",
-]
-MEAS_COLUMNS = ["t", "agent", "rho", "azimuth", "inclination", "from_target"]
+STEP_COLUMNS = [c.name for c in schema.STEPS]
+AGENT_COLUMNS = [c.name for c in schema.AGENTS]
+MEAS_COLUMNS = [c.name for c in schema.MEASUREMENTS]
 
 SOLVERS = {
     "greedy": [],

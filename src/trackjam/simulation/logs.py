@@ -1,6 +1,6 @@
 """Column logs of a run: steps, agents and measurements, kept as arrays and written as Parquet.
 
-Every column is documented in the README ("Output files").
+Every column is declared once, in :mod:`trackjam.simulation.schema`.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from trackjam.metrics.track_quality import CLASSES, step_classes
+from trackjam.simulation.schema import AGENTS, MEASUREMENTS, STEPS, conform
 
 NAN3 = (np.nan, np.nan, np.nan)
 
@@ -27,7 +28,7 @@ class RunLog:
         self.gate = gate  # metrics.gate [m], for the steps' `quality` column
         self.steps: list[dict] = []
         self.agents: dict[str, list] = {}
-        self.meas: dict[str, list] = {k: [] for k in ("t", "agent", "rho", "azimuth", "inclination", "from_target")}
+        self.meas: dict[str, list] = {c.name: [] for c in MEASUREMENTS}
 
     def add_step(self, *, t, target_exists, target_detectable, truth, existence, estimate, ospa, aim,
                  mode, objective, optimal, gap, target_received_w, solve_s, step_s) -> None:
@@ -87,24 +88,17 @@ class RunLog:
         if steps:
             steps = _with_quality(steps, self.gate)
         agents = {k: np.concatenate(v) for k, v in self.agents.items()}
-        dtypes = {"t": np.int64, "agent": np.int64, "from_target": bool}
-        meas = {
-            k: (np.concatenate(v) if v else np.zeros(0, dtype=dtypes.get(k, float)))
-            for k, v in self.meas.items()
-        }
-        return steps, agents, meas
+        meas = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in self.meas.items()}
+        if not steps:
+            return steps, agents, conform(meas, MEASUREMENTS, "measurements")
+        return (conform(steps, STEPS, "steps"), conform(agents, AGENTS, "agents"),
+                conform(meas, MEASUREMENTS, "measurements"))
 
 
 def _with_quality(steps: dict, gate: float) -> dict:
-    """The steps' columns with ``quality`` (the track-quality class name of each step, judged by
-    the truth within ``gate`` m) placed right after ``ospa``."""
-    quality = np.asarray(CLASSES)[step_classes(steps, gate)]
-    out = {}
-    for k, v in steps.items():
-        out[k] = v
-        if k == "ospa":
-            out["quality"] = quality
-    return out
+    """The steps' columns with ``quality``: the track-quality class name of each step, judged by
+    the truth within ``gate`` m."""
+    return steps | {"quality": np.asarray(CLASSES)[step_classes(steps, gate)]}
 
 
 def write_parquet(columns: dict[str, np.ndarray], path: Path) -> None:
