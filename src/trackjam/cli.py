@@ -255,9 +255,9 @@ def experiment(
 def bench(
     quick: bool = typer.Option(False, "--quick", help="Fewer repetitions, for a smoke check."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the figures as JSON here."),
-    only: Optional[list[str]] = typer.Option(None, "--only", help="filter | control | run (repeatable)."),
+    only: Optional[list[str]] = typer.Option(None, "--only", help="filter | control | run | env (repeatable)."),
 ) -> None:
-    """Measure the speed of the filter, the solvers and a whole run."""
+    """Measure the speed of the filter, the solvers, a whole run and the learning environment."""
     from trackjam.benchmarks.report import run_benchmarks
 
     run_benchmarks(quick=quick, json_out=json_out, only=only or [])

@@ -135,7 +135,7 @@ def test_reward_is_xi_at_the_truth_less_the_penalty_recomputed_from_the_geometry
     checked_jam = checked_detect = False
     while env.agents:
         actions = {a: np.array([rng.integers(3), rng.integers(2, 4)]) for a in env.agents}
-        _, rew, _, _, _ = env.step(actions)
+        _, rew, _, _, info = env.step(actions)
         r = env.sim.log.steps[-1]
         truth = np.array([r["truth_x"], r["truth_y"], r["truth_z"]])
         pos = env.sim.team.positions
@@ -147,6 +147,8 @@ def test_reward_is_xi_at_the_truth_less_the_penalty_recomputed_from_the_geometry
         expected = xi_by_subsets(p, s.control.at_least) - 0.3 * v.sum()
         assert rew["agent_0"] == pytest.approx(expected, abs=1e-12)
         assert rew["agent_0"] == rew["agent_1"] == rew["agent_2"]
+        assert [info[a]["violation"] for a in env.possible_agents] == pytest.approx(v.tolist(), abs=1e-12)
+        assert info["agent_2"]["xi"] == pytest.approx(xi_by_subsets(p, s.control.at_least), abs=1e-12)
         checked_jam |= bool(v.sum() > 0)
         checked_detect |= bool(p.max() > 0)
     assert checked_jam and checked_detect

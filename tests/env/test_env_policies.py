@@ -58,7 +58,7 @@ def test_rollout_reports_one_summary_per_seed_and_repeats_itself():
 
 
 def test_rollout_return_is_the_sum_of_the_rewards():
-    env = parallel_env(load_scenario("paper-fig3", FAST + ["control.solver=exact"]))
+    env = parallel_env(load_scenario("paper-fig3", FAST + ["control.solver=exact"]), jam_penalty=0.5)
     policy = solver_policy(env, "exact")
     obs, _ = env.reset(seed=3)
     total = 0.0
@@ -67,6 +67,8 @@ def test_rollout_return_is_the_sum_of_the_rewards():
         total += rew["agent_0"]
     [row] = rollout(env, policy, [3])
     assert row["return"] == pytest.approx(total, abs=0) and row["policy"] == "exact"
+    assert row["return"] == pytest.approx(row["xi"] - row["penalty"], abs=1e-9)
+    assert 0 < row["xi"] <= row["steps"]
 
 
 def test_an_unknown_solver_is_named():

@@ -6,7 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
-from trackjam.env.reward import team_reward, violation
+from trackjam.env.reward import reward_terms, team_reward, violation
 
 
 def xi_by_subsets(p, n):
@@ -31,8 +31,10 @@ def test_reward_is_the_at_least_n_probability_less_the_penalty(n):
         R = rng.choice([0.0, 5e-5, 2e-4, 3e-2], size=4)
         lam = rng.uniform(0, 2)
         expected = xi_by_subsets(p, n) - lam * sum(1 + np.log10(r / 1e-4) for r in R if r >= 1e-4)
-        assert team_reward(p, R, 1e-4, n, lam) == pytest.approx(expected, abs=1e-12)
+        xi, v = reward_terms(p, R, 1e-4, n)
+        assert xi == pytest.approx(xi_by_subsets(p, n), abs=1e-12)
+        assert team_reward(xi, v, lam) == pytest.approx(expected, abs=1e-12)
 
 
 def test_no_penalty_weight_leaves_xi():
-    assert team_reward([0.5, 0.5], [1.0, 1.0], 1e-4, 1, 0.0) == pytest.approx(0.75)
+    assert team_reward(*reward_terms([0.5, 0.5], [1.0, 1.0], 1e-4, 1), 0.0) == pytest.approx(0.75)

@@ -22,12 +22,13 @@ def machine() -> dict:
 
 
 def _groups(quick: bool) -> dict:
-    from trackjam.benchmarks import control, filter, run
+    from trackjam.benchmarks import control, env, filter, run
 
     return {
         "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")],
+        "env": lambda: [env.bench_env(episodes=1 if quick else 5)],
     }
 
 

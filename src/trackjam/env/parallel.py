@@ -20,7 +20,7 @@ from pettingzoo import ParallelEnv
 from trackjam.config import Scenario
 from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
-from trackjam.env.reward import team_reward
+from trackjam.env.reward import reward_terms, team_reward
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
 
@@ -146,8 +146,8 @@ class TrackjamParallelEnv(ParallelEnv):
     def _outcome(self, record: StepRecord, hovered: np.ndarray):
         sim, c, s = self.sim, self.sim.c, self.scenario
         ag = record.agents
-        reward = team_reward(ag["p_d"], ag["interference_w"], c.antenna.delta_w, s.control.at_least,
-                             self.jam_penalty)
+        xi, v = reward_terms(ag["p_d"], ag["interference_w"], c.antenna.delta_w, s.control.at_least)
+        reward = team_reward(xi, v, self.jam_penalty)
         truth = sim.truth
         if truth.downed_at is not None:
             end = f"target downed at step {truth.downed_at}"
@@ -167,7 +167,7 @@ class TrackjamParallelEnv(ParallelEnv):
             a: {
                 "t": record.t, "move": int(moves[j]), "level": int(ag["level_index"][j]), "hovered": bool(hovered[j]),
                 "p_d": float(ag["p_d"][j]), "interference_w": float(ag["interference_w"][j]),
-                "jammed": bool(ag["jammed"][j]), "mode": str(ag["mode"][j]),
+                "jammed": bool(ag["jammed"][j]), "violation": float(v[j]), "xi": xi, "mode": str(ag["mode"][j]),
                 **({"end": self._ended} if (terminated or truncated) else {}),
             }
             for a, j in ((a, self._index[a]) for a in live)

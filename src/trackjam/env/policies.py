@@ -58,22 +58,25 @@ def random_policy(env: TrackjamParallelEnv, seed: int = 0) -> RandomPolicy:
 def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
             progress: Callable[[dict], None] | None = None) -> list[dict]:
     """One episode per seed; per episode the run summary (:func:`trackjam.metrics.summary.summarise`)
-    with ``policy`` (its name), ``return`` (the summed shared reward), ``steps`` and ``end``.
+    with ``policy`` (its name), ``return`` (the summed shared reward), its two parts ``xi`` (summed
+    Xi at the truth) and ``penalty`` (summed jam penalty), ``steps`` and ``end``.
     A policy with a ``reset(seed)`` method is reset at the start of each episode."""
     rows = []
     for seed in seeds:
         obs, _ = env.reset(seed=int(seed))
         if hasattr(policy, "reset"):
             policy.reset(int(seed))
-        total, steps, end = 0.0, 0, ""
+        total, xi, violations, steps, end = 0.0, 0.0, 0.0, 0, ""
         while env.agents:
             obs, rewards, _, _, infos = env.step(policy(obs))
             total += next(iter(rewards.values()))
+            xi += next(iter(infos.values()))["xi"]
+            violations += sum(i["violation"] for i in infos.values())
             steps += 1
             end = next(iter(infos.values())).get("end", "")
         summary = env.sim.result().summary
         row = {**summary, "policy": getattr(policy, "__name__", type(policy).__name__), "seed": int(seed),
-               "return": total, "steps": steps, "end": end}
+               "return": total, "xi": xi, "penalty": env.jam_penalty * violations, "steps": steps, "end": end}
         row.pop("solver", None)  # the scenario's solver, not necessarily who decided
         rows.append(row)
         if progress is not None:

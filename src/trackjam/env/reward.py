@@ -27,8 +27,13 @@ def violation(interference_w: np.ndarray, delta_w: float) -> np.ndarray:
     return v
 
 
-def team_reward(p_d: np.ndarray, interference_w: np.ndarray, delta_w: float, at_least: int,
-                jam_penalty: float) -> float:
-    """Xi^N_n at the truth less ``jam_penalty`` times the summed violations."""
+def reward_terms(p_d: np.ndarray, interference_w: np.ndarray, delta_w: float,
+                 at_least: int) -> tuple[float, np.ndarray]:
+    """Xi^N_n at the truth and every agent's violation v_i."""
     xi = float(at_least_probability(np.asarray(p_d, dtype=float), at_least))
-    return xi - jam_penalty * float(violation(interference_w, delta_w).sum())
+    return xi, violation(interference_w, delta_w)
+
+
+def team_reward(xi: float, v: np.ndarray, jam_penalty: float) -> float:
+    """Xi^N_n less ``jam_penalty`` times the summed violations."""
+    return xi - jam_penalty * float(np.sum(v))

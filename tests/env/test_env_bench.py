@@ -1,0 +1,16 @@
+"""`trackjam bench` has an env group that measures env steps with random actions (no timing is
+asserted, only that the figures are consistent)."""
+
+from trackjam.benchmarks.env import bench_env
+from trackjam.benchmarks.report import _groups
+
+
+def test_env_group_is_registered():
+    assert "env" in _groups(quick=True)
+
+
+def test_bench_env_counts_every_step_of_every_episode():
+    row = bench_env(episodes=2, overrides=("steps=3", "filter.particles=300", "filter.birth_particles=50"))
+    assert row["episodes"] == 2 and row["steps"] == 6
+    assert 0 < row["step_ms_median"] <= row["step_ms_p95"]
+    assert row["steps_per_s"] > 0 and row["cpu_ms_per_step"] > 0
