@@ -234,11 +234,15 @@ class Team:
         s = self.settings
         inboxes = self.exchange.send(self.t, "posterior", [m for m in posteriors if m is not None])
         report = None
+        fused_by_inbox: dict[tuple[int, ...], FusedEstimate] = {}  # agents holding the same messages fuse alike
         for j in self.working():
             a = self.agents[j]
             box = [m for m in inboxes[j] if m.stamp == self.t]
-            fused = fuse([m.estimate for m in box], predicted=[m.prior_existence for m in box],
-                         rule=s.existence_rule)
+            key = tuple(id(m) for m in box)
+            if key not in fused_by_inbox:
+                fused_by_inbox[key] = fuse([m.estimate for m in box], predicted=[m.prior_existence for m in box],
+                                           rule=s.existence_rule)
+            fused = fused_by_inbox[key]
             report = fused if report is None else report
             a.remember(fused.existence, fused.mean, fused.cov)
             if not s.feedback:
