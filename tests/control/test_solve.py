@@ -52,3 +52,30 @@ def test_a_bad_time_budget_is_one_line_naming_the_key(value, words):
     with pytest.raises(ConfigError) as info:
         load_scenario("paper-fig3", [f"control.time_limit_s={value}"])
     assert "\n" not in str(info.value) and "control.time_limit_s" in str(info.value) and words in str(info.value)
+
+
+def test_the_configuration_offers_exactly_the_registered_solvers():
+    import typing
+
+    from trackjam.config.model import Control
+    from trackjam.control.solve import SOLVERS
+
+    assert set(typing.get_args(Control.model_fields["solver"].annotation)) == set(SOLVERS)
+
+
+def test_a_registered_function_is_a_solver(fig3_problem):
+    from trackjam.control.solve import SOLVERS, register
+    from trackjam.control.objective import to_solution
+
+    @register("all-off-test")
+    def all_off(problem, rngs, options):
+        n = problem.n_agents
+        return to_solution(problem, np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
+
+    try:
+        sol = solve(fig3_problem, "all-off-test", [])
+        assert np.all(sol.move == 0) and np.all(sol.level == 0) and sol.feasible
+        with pytest.raises(ValueError):
+            register("all-off-test")(all_off)
+    finally:
+        del SOLVERS["all-off-test"]
