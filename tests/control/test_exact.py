@@ -122,3 +122,28 @@ def test_all_off_when_nobody_can_see_the_aim(antenna):
     P = build_problem([[0, 0, 0], [100, 100, 100]], [50, 0, 100], small_displacements(), antenna, LOW, HIGH, 1, True)
     sol = solve_exact(P)
     assert sol.objective == 0 and np.all(sol.move == 0) and np.all(sol.level == 0)
+
+
+def test_xi_is_linear_in_one_agents_p_d_with_the_kernels_coefficients():
+    """The bound of a pair costs S multiply-adds: Xi = A + B p_D^d, A and B from the others."""
+    from trackjam.control.exact import _others_dp
+    from trackjam.control.objective import at_least_probability
+
+    rng = np.random.default_rng(4)
+    for _ in range(30):
+        S, N = int(rng.integers(1, 5)), int(rng.integers(1, 6))
+        n = int(rng.integers(1, N + 1))
+        d = int(rng.integers(0, N))
+        p = rng.uniform(0, 1, (S, N))
+        smax = rng.uniform(0, 1, (S, N, 7))
+        bptr = rng.integers(0, 7, (N + 1, N))
+        AB = np.zeros((N, S, 2))
+        _others_dp(d, n, p, smax, bptr, AB)
+        for s in range(S):
+            others = np.array([p[s, j] if j < d else smax[s, j, bptr[d, j]] for j in range(N) if j != d])
+            A = at_least_probability(others, n)
+            B = at_least_probability(others, n - 1) - A
+            assert AB[d, s, 0] == pytest.approx(A, abs=1e-14) and AB[d, s, 1] == pytest.approx(B, abs=1e-14)
+            x = rng.uniform()
+            full = at_least_probability(np.insert(others, d, x), n)
+            assert AB[d, s, 0] + AB[d, s, 1] * x == pytest.approx(full, abs=1e-14)

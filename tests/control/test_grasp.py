@@ -25,7 +25,7 @@ def test_kernel_follows_numpy_reference(antenna):
             c = np.zeros(3, dtype=np.int64)
             l = np.zeros(3, dtype=np.int64)
             r1, r2 = np.random.default_rng(trial), np.random.default_rng(trial)
-            v = kernel_grasp_search(r1, me, P.p_d, P.gain, P.levels_w, P.delta_w, P.at_least,
+            v = kernel_grasp_search(r1, me, *P.objective_tables(), P.gain, P.levels_w, P.delta_w, P.at_least,
                                     P.constraints, P.n_cand, neigh, n_neigh, 200, 15, c, l)
             v_ref, c_ref, l_ref = grasp_search_reference(r2, me, P, neigh, n_neigh, 200, 15, c * 0, l * 0)
             assert v == v_ref and np.array_equal(c, c_ref) and np.array_equal(l, l_ref)

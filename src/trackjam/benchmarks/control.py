@@ -156,6 +156,30 @@ def bench_scaling(n_agents=range(2, 7), instances: int = 10, seed: int = 0, samp
             "largest_exact_within_budget": largest}
 
 
+def bench_belief(n_samples: int = 16, instances: int = 200, seed: int = 0, spread_m: float = 3.0,
+                 n_controls: int = 79) -> dict:
+    """`exact` planning over the belief (N = 3, n = 2): the objective averaged over
+    ``n_samples`` positions drawn from a Gaussian of ``spread_m`` [m] per axis around the aim,
+    equal weights (a resampled particle set); time of build and solve per step."""
+    _warm()
+    D = displacement_set(*CONTROL_CASES[n_controls])
+    antennas = {a: paper_antenna(a) for a in OPENING_ANGLES_DEG}
+    rng = np.random.default_rng([seed, n_samples])
+    ms, nodes, proven = [], [], []
+    for _ in range(instances):
+        u, x, a = draw_instance(rng)
+        xs = np.clip(x + rng.normal(0, spread_m, (n_samples, 3)), LOW, HIGH)
+        t = time.perf_counter()
+        P = build_problem(u, x, D, antennas[a], LOW, HIGH, 2, True, samples=xs)
+        sol = solve_exact(P, time_limit_s=None)
+        ms.append(1e3 * (time.perf_counter() - t))
+        nodes.append(sol.nodes)
+        proven.append(sol.optimal)
+    return {"controls": n_controls, "samples": n_samples, "spread_m": spread_m, "instances": instances,
+            **{f"build_and_solve_{k}": v for k, v in _stats(ms).items()}, "nodes_median": float(np.median(nodes)),
+            "nodes_max": int(np.max(nodes)), "proven_optimal": float(np.mean(proven))}
+
+
 def bench_budget(n_agents=(6, 8), instances: int = 20, seed: int = 0, time_limit_s: float = 1.0) -> dict:
     """`exact` under its time budget (``control.time_limit_s``) at 79 controls, n = 2: time per
     step (build and solve), the share of steps proven optimal, and the certified gaps left
@@ -195,6 +219,8 @@ def run(quick: bool = True, seed: int = 0) -> dict:
             "grasp_79": bench_grasp(79, 8, seed),
             "scaling": bench_scaling(range(2, 7), 4, seed, samples=2000, iterations=20, max_agents=8),
             "exact_budget": bench_budget((6, 8), 5, seed),
+            "exact_belief_16": bench_belief(16, 40, seed),
+            "exact_belief_32": bench_belief(32, 20, seed),
         }
     return {
         "exact_79": bench_exact(79, 1000, seed),
@@ -204,6 +230,8 @@ def run(quick: bool = True, seed: int = 0) -> dict:
         "grasp_79_threads": bench_grasp(79, 50, seed, threads=2),
         "scaling": bench_scaling(range(2, 7), 20, seed),
         "exact_budget": bench_budget((6, 8), 20, seed),
+        "exact_belief_16": bench_belief(16, 200, seed),
+        "exact_belief_32": bench_belief(32, 200, seed),
     }
 
 

@@ -56,10 +56,11 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     levels = np.zeros((len(rows), N), dtype=np.int64)
 
     values = np.empty(len(rows))
+    p_s, w = problem.objective_tables()
 
     def search(k: int) -> None:
         values[k] = kernel_grasp_search(
-            rngs[k], int(rows[k]), problem.p_d, problem.gain, problem.levels_w, problem.delta_w,
+            rngs[k], int(rows[k]), p_s, w, problem.gain, problem.levels_w, problem.delta_w,
             problem.at_least, problem.constraints, problem.n_cand, neigh, n_neigh,
             int(samples), int(iterations), cands[k], levels[k],
         )

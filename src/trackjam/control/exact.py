@@ -37,16 +37,11 @@ import time
 import numpy as np
 from numba import njit
 
-from trackjam.control.objective import at_least_probability, evaluate, kernel_at_least, kernel_feasible, to_solution
+from trackjam.control.objective import evaluate, mean_at_least, kernel_at_least, kernel_feasible, to_solution
 from trackjam.control.problem import Problem, Solution
 
 #: wall time a chunk of the search aims at [s]: Ctrl-C and the clock are checked between chunks
 CHUNK_S = 0.02
-
-
-def objective_tables(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """p_D of every (sample, agent, candidate, level), shape (S, N, C, L), and the weights (S,)."""
-    return problem.p_d[None], np.ones(1)
 
 
 def pair_order(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
@@ -56,7 +51,7 @@ def pair_order(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     Returns ``order`` (N, C*L) padded with -1, and ``n_pairs`` (N,).
     """
     N, C, L = problem.p_d.shape
-    p_s, w = objective_tables(problem)
+    p_s, w = problem.objective_tables()
     score = p_s[0] if w.shape[0] == 1 else np.tensordot(w, p_s, axes=1)
     order = np.full((N, C * L), -1, dtype=np.int64)
     n_pairs = problem.n_cand * L
@@ -161,14 +156,48 @@ def kernel_start_value(p_s, w, gain, levels_w, delta, n, constrained, cand, leve
 
 
 @njit(cache=True)
+def _others_dp(d, n, p, smax, bptr, AB):
+    """For every sample s: with agents 0..d-1 at ``p[s]`` and agents k > d at their bound
+    ``smax[s, k, bptr[d, k]]``, AB[d, s] = (P(at least n of them detect), P(exactly n - 1 do)).
+
+    Then agent d at p_D = x gives Xi = A + B x at sample s: the bound of any pair of agent d
+    costs S multiply-adds instead of S dynamic programmes."""
+    S, N = smax.shape[0], smax.shape[1]
+    q = np.empty(n + 1)
+    for s in range(S):
+        q[0] = 1.0
+        for m in range(1, n + 1):
+            q[m] = 0.0
+        for j in range(N):
+            if j == d:
+                continue
+            pj = p[s, j] if j < d else smax[s, j, bptr[d, j]]
+            q[n] += q[n - 1] * pj
+            for m in range(n - 1, 0, -1):
+                q[m] = q[m] * (1.0 - pj) + q[m - 1] * pj
+            q[0] *= 1.0 - pj
+        AB[d, s, 0] = q[n]
+        AB[d, s, 1] = q[n - 1]
+
+
+@njit(cache=True)
+def _linear_bound(d, r, table, w, AB):
+    """sum_s w_s (A_s + B_s table[s, d, r]): the bound of agent d at p_D ``table[:, d, r]``."""
+    acc = 0.0
+    for s in range(w.shape[0]):
+        acc += w[s] * (AB[d, s, 0] + AB[d, s, 1] * table[s, d, r])
+    return acc
+
+
+@njit(cache=True)
 def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, rank_c, rank_l,
-                            n_pairs, rows, have, c, lv, rank, p, recv, bptr, cur, best_cand,
+                            n_pairs, rows, have, c, lv, rank, p, recv, bptr, cur, AB, best_cand,
                             best_level, state, best_value, max_nodes):
     """Maximise sum_s w_s Xi^N_n subject to Eq. (13) (when ``constrained``), resumably.
 
     ``ps[s, i, r]`` is p_D of agent i's pair of rank r at sample s, ``smax`` its suffix maximum
     over ranks; ``state`` = [depth, nodes visited], ``best_value`` = [incumbent value], and
-    ``best_cand``/``best_level`` (N,) the incumbent; with ``c, lv, rank, p, recv, bptr, cur``
+    ``best_cand``/``best_level`` (N,) the incumbent; with ``c, lv, rank, p, recv, bptr, cur, AB``
     they are the whole search state, saved on return. Runs at most ``max_nodes`` more nodes
     (all of them when <= 0); returns True when the search is complete (the incumbent is then
     the optimum; -inf when nothing feasible exists).
@@ -180,6 +209,8 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
     nodes = state[1]
     best = best_value[0]
     stop = nodes + max_nodes
+    if nodes == 0 and d == 0:
+        _others_dp(0, n, p, smax, bptr, AB)
     while d >= 0:
         descended = False
         while cur[d] < n_pairs[d]:
@@ -197,18 +228,10 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
                     break
             cur[d] = r + 1
             nodes += 1
-            for s in range(S):
-                for j in range(d):
-                    pv[s, j] = p[s, j]
-                pv[s, d] = smax[s, d, r]
-                for k in range(d + 1, N):
-                    pv[s, k] = smax[s, k, bptr[d, k]]
-            if kernel_mean_xi(pv, w, n, q) <= best:
+            if _linear_bound(d, r, smax, w, AB) <= best:
                 cur[d] = n_pairs[d]  # no later pair of agent d does better
                 break
-            for s in range(S):
-                pv[s, d] = ps[s, d, r]
-            if S > 1 and kernel_mean_xi(pv, w, n, q) <= best:
+            if S > 1 and _linear_bound(d, r, ps, w, AB) <= best:
                 continue
             c[d] = rank_c[d, r]
             lv[d] = rank_l[d, r]
@@ -222,9 +245,11 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
                     recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
                 recv[d, d] = inc
             if d == N - 1:
-                best = kernel_mean_xi(pv, w, n, q)
-                best_cand[:] = c
-                best_level[:] = lv
+                value = kernel_mean_xi(p, w, n, q)
+                if value > best:
+                    best = value
+                    best_cand[:] = c
+                    best_level[:] = lv
                 if S == 1:
                     cur[d] = n_pairs[d]  # later pairs have lower or equal p_D
                     break
@@ -242,14 +267,18 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
                     dead = True
                     break
                 bptr[d + 1, k] = rr
-                for s in range(S):
-                    pv[s, k] = smax[s, k, rr]
             if dead:
                 continue
+            for s in range(S):
+                for j in range(d + 1):
+                    pv[s, j] = p[s, j]
+                for k in range(d + 1, N):
+                    pv[s, k] = smax[s, k, bptr[d + 1, k]]
             if kernel_mean_xi(pv, w, n, q) <= best:
                 continue
             d += 1
             cur[d] = bptr[d, d]
+            _others_dp(d, n, p, smax, bptr, AB)
             descended = True
             break
         if not descended:
@@ -266,7 +295,7 @@ class BranchAndBound:
     def __init__(self, problem: Problem):
         self.problem = problem
         N, C, L = problem.p_d.shape
-        p_s, self.w = objective_tables(problem)
+        p_s, self.w = problem.objective_tables()
         order, self.n_pairs = pair_order(problem)
         P = order.shape[1]
         valid = order >= 0
@@ -285,6 +314,7 @@ class BranchAndBound:
         self.recv = np.zeros((N, N))  # recv[d, j]: power at agent j from agents 0..d
         self.bptr = np.zeros((N + 1, N), dtype=np.int64)  # first admissible rank of k given 0..d-1
         self.cur = np.zeros(N, dtype=np.int64)
+        self.AB = np.zeros((N, p_s.shape[0], 2))  # per depth and sample: Xi = A + B p_D (see _others_dp)
         self.best_cand = np.zeros(N, dtype=np.int64)
         self.best_level = np.zeros(N, dtype=np.int64)
         self.state = np.zeros(2, dtype=np.int64)
@@ -309,7 +339,7 @@ class BranchAndBound:
             self.finished = bool(kernel_branch_and_bound(
                 self.w, P.gain, P.levels_w, P.delta_w, P.at_least, P.constraints, self.ps, self.smax,
                 self.rank_c, self.rank_l, self.n_pairs, self.rows, self.have, self.c, self.lv, self.rank,
-                self.p, self.recv, self.bptr, self.cur, self.best_cand, self.best_level, self.state,
+                self.p, self.recv, self.bptr, self.cur, self.AB, self.best_cand, self.best_level, self.state,
                 self.best_value, int(max_nodes),
             ))
         return self.finished
@@ -354,7 +384,7 @@ class BranchAndBound:
             pv[:, e] = self.smax[:, e, r]
             for k in range(e + 1, N):
                 pv[:, k] = self.smax[:, k, self.bptr[e, k]]
-            out = max(out, float(self.w @ at_least_probability(pv, n)))
+            out = max(out, float(mean_at_least(pv, self.w, n)))
         return out
 
     def solution(self) -> Solution:

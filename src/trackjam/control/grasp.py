@@ -12,7 +12,8 @@ Each agent j, with its own random stream, runs n_I iterations of
    ends of L; a neighbour replaces the incumbent only when strictly better;
 
 and keeps the best feasible control over its iterations. The agents then exchange their best
-solutions and all apply the best one (ties to the lower agent index).
+solutions and all apply the best one (ties to the lower agent index). Planning over the belief,
+every value is the objective averaged over the samples (``Problem.objective_tables``).
 
 All agents hovering at the lowest level (``off`` in the paper, 0 W, hence no interference) is
 the starting incumbent of every search, so a feasible solution is always returned when level 0
@@ -32,8 +33,8 @@ import numpy as np
 from numba import njit
 
 from trackjam.control.objective import (
-    at_least_probability,
     kernel_at_least,
+    mean_at_least,
     kernel_feasible,
     received_interference,
     to_solution,
@@ -63,13 +64,15 @@ def neighbour_lists(problem: Problem, neighbours: int) -> tuple[np.ndarray, np.n
 
 
 @njit(cache=True)
-def _value(p_d, gain, levels_w, delta, n, constrained, cand, level, p, q):
-    """Xi of (cand, level), or -inf when Eq. (13) is enforced and violated."""
-    for i in range(cand.shape[0]):
-        p[i] = p_d[i, cand[i], level[i]]
-    xi = kernel_at_least(p, n, q)
+def _value(p_s, w, gain, levels_w, delta, n, constrained, cand, level, p, q):
+    """sum_s w_s Xi of (cand, level), or -inf when Eq. (13) is enforced and violated."""
     if constrained and not kernel_feasible(gain, levels_w, delta, cand, level):
         return -np.inf
+    xi = 0.0
+    for s in range(w.shape[0]):
+        for i in range(cand.shape[0]):
+            p[i] = p_s[s, i, cand[i], level[i]]
+        xi += w[s] * kernel_at_least(p, n, q)
     return xi
 
 
@@ -113,11 +116,13 @@ def _sample_xi(p_flat, kk, n, p, q):
 
 
 @njit(cache=True, nogil=True)
-def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_cand, neigh,
+def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh,
                         n_neigh, samples, iterations, best_cand, best_level):
     """Agent ``me``'s GRASP search; writes its best control into ``best_cand``/``best_level``
-    (both (N,), on entry the starting incumbent) and returns its value (-inf: none feasible)."""
+    (both (N,), on entry the starting incumbent) and returns its value (-inf: none feasible).
+    ``p_s`` (S, N, C, L) and ``w`` (S,) are :meth:`Problem.objective_tables`."""
     N = n_cand.shape[0]
+    S = w.shape[0]
     L = levels_w.shape[0]
     p = np.empty(N)
     q = np.empty(n + 1)
@@ -127,12 +132,12 @@ def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_c
     it_l = np.empty(N, dtype=np.int64)
     kk = np.empty(N, dtype=np.int64)
     M = n_cand * L
-    p_flat = p_d.reshape(N, -1)  # pair k = c * L + l
-    pair_c = np.arange(p_flat.shape[1]) // L
-    pair_l = np.arange(p_flat.shape[1]) % L
+    p_flat = p_s.reshape(S, N, -1)  # pair k = c * L + l
+    pair_c = np.arange(p_flat.shape[2]) // L
+    pair_l = np.arange(p_flat.shape[2]) % L
     start_c = best_cand.copy()
     start_l = best_level.copy()
-    best = _value(p_d, gain, levels_w, delta, n, constrained, best_cand, best_level, p, q)
+    best = _value(p_s, w, gain, levels_w, delta, n, constrained, best_cand, best_level, p, q)
     start = best
     for _ in range(iterations):
         # 1. greedy randomised solution: best feasible of n_s uniform joint samples
@@ -140,7 +145,12 @@ def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_c
         for _s in range(samples):
             for i in range(N):
                 kk[i] = min(int(rng.random() * M[i]), M[i] - 1)
-            xi = _sample_xi(p_flat, kk, n, p, q)
+            if S == 1:  # w = [1]
+                xi = _sample_xi(p_flat[0], kk, n, p, q)
+            else:
+                xi = 0.0
+                for s in range(S):
+                    xi += w[s] * _sample_xi(p_flat[s], kk, n, p, q)
             if xi > it_best:
                 for i in range(N):
                     c[i] = pair_c[kk[i]]
@@ -188,7 +198,7 @@ def kernel_grasp_search(rng, me, p_d, gain, levels_w, delta, n, constrained, n_c
             for ll in (l_minus, l0, l_plus):
                 c[me] = uu
                 lv[me] = ll
-                v = _value(p_d, gain, levels_w, delta, n, constrained, c, lv, p, q)
+                v = _value(p_s, w, gain, levels_w, delta, n, constrained, c, lv, p, q)
                 if v > ls_best:
                     ls_best = v
                     ls_u, ls_l = uu, ll
@@ -206,9 +216,10 @@ def grasp_search_reference(rng, me, problem: Problem, neigh, n_neigh, samples, i
     """Plain-numpy twin of :func:`kernel_grasp_search` (same draws, same ties)."""
     N, L, n = problem.n_agents, problem.n_levels, problem.at_least
     idx = np.arange(N)
+    p_s, w = problem.objective_tables()
 
     def values(c, lv):
-        xi = at_least_probability(problem.p_d[idx, c, lv], n)
+        xi = mean_at_least(p_s[:, idx, c, lv], w, n)
         if problem.constraints:
             ok = np.all(received_interference(problem.gain, problem.levels_w, c, lv) < problem.delta_w, axis=-1)
             xi = np.where(ok, xi, -np.inf)
@@ -263,13 +274,14 @@ def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int 
     if len(rngs) < N:
         raise ValueError(f"grasp needs one random generator per agent ({N}), got {len(rngs)}")
     neigh, n_neigh = neighbour_lists(problem, neighbours)
+    p_s, w = problem.objective_tables()
     values = np.empty(N)
     cands = np.zeros((N, N), dtype=np.int64)
     levels = np.zeros((N, N), dtype=np.int64)
 
     def search(j: int) -> None:
         values[j] = kernel_grasp_search(
-            rngs[j], j, problem.p_d, problem.gain, problem.levels_w, problem.delta_w,
+            rngs[j], j, p_s, w, problem.gain, problem.levels_w, problem.delta_w,
             problem.at_least, problem.constraints, problem.n_cand, neigh, n_neigh,
             int(samples), int(iterations), cands[j], levels[j],
         )

@@ -1,4 +1,5 @@
-"""The single-agent controller of Eq. (11): each agent alone maximises its own p_D at x_bar.
+"""The single-agent controller of Eq. (11): each agent alone maximises its own p_D at x_bar
+(planning over the belief: its own p_D averaged over the samples, sum_s w_s p_D(x_s)).
 
 Ties go to the lower power level, then to the lower displacement index (hover first), so an
 agent that cannot see x_bar from anywhere hovers with its antenna off. Eq. (13) does not enter
@@ -18,9 +19,13 @@ def greedy_choice(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     N = problem.n_agents
     cand = np.zeros(N, dtype=np.int64)
     level = np.zeros(N, dtype=np.int64)
+    p_s, w = problem.objective_tables()
+    score = 0.0
+    for s in range(len(w)):  # one sample of weight 1 leaves p_D as it is
+        score = score + w[s] * p_s[s]
     for i in range(N):
         # level-major flattening: np.argmax's first maximum is the lowest level, then lowest move
-        by_level = problem.p_d[i, : problem.n_cand[i], :].T.ravel()
+        by_level = score[i, : problem.n_cand[i], :].T.ravel()
         k = int(np.argmax(by_level))
         level[i], cand[i] = divmod(k, int(problem.n_cand[i]))
     return cand, level

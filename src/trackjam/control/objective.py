@@ -9,6 +9,10 @@ relies on.
 
 Eq. (13): agent i receives sum_{j != i} l_j g_{j->i}, and must receive strictly less than delta.
 
+Planning over the belief averages Xi over weighted samples of the target's position,
+sum_s w_s Xi(p_D at x_s) (:func:`mean_at_least`, accumulated in sample order so that the
+compiled solvers reproduce it bit for bit; one sample of weight 1 is Xi itself).
+
 ``kernel_at_least`` and ``kernel_feasible`` are the compiled twins used inside the solvers;
 ``at_least_probability`` and ``received_interference`` are the numpy references.
 """
@@ -61,6 +65,14 @@ def kernel_at_least(p, n, q):
     return q[n]
 
 
+def mean_at_least(p, w, n: int) -> np.ndarray:
+    """sum_s w_s Xi^N_n(p[s]) for ``p`` of shape (S, ..., N) and weights ``w`` (S,)."""
+    acc = 0.0
+    for s in range(len(w)):
+        acc = acc + w[s] * at_least_probability(p[s], n)
+    return np.asarray(acc)
+
+
 def received_interference(gain, levels_w, cand, level) -> np.ndarray:
     """Left side of Eq. (13): power each agent i receives from the others [W], shape (..., N).
 
@@ -90,7 +102,8 @@ def kernel_feasible(gain, levels_w, delta, cand, level):
 
 
 def evaluate(problem: Problem, cand, level) -> tuple[np.ndarray, np.ndarray]:
-    """Xi^N_n and Eq. (13) of joint choices (``cand``, ``level`` of shape (..., N)).
+    """Xi^N_n (averaged over the belief's samples when the problem has them) and Eq. (13) of
+    joint choices (``cand``, ``level`` of shape (..., N)).
 
     The second array says whether Eq. (13) holds, whether or not ``problem.constraints`` asks
     the solvers to enforce it (so a solution can report honestly that it jams an agent).
@@ -98,8 +111,8 @@ def evaluate(problem: Problem, cand, level) -> tuple[np.ndarray, np.ndarray]:
     cand = np.asarray(cand, dtype=np.int64)
     level = np.asarray(level, dtype=np.int64)
     N = problem.n_agents
-    p = problem.p_d[np.arange(N), cand, level]
-    xi = at_least_probability(p, problem.at_least)
+    p_s, w = problem.objective_tables()
+    xi = mean_at_least(p_s[:, np.arange(N), cand, level], w, problem.at_least)
     ok = np.all(received_interference(problem.gain, problem.levels_w, cand, level) < problem.delta_w, axis=-1)
     return xi, ok
 

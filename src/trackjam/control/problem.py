@@ -12,13 +12,20 @@ transmit at a level l from L. In planning every candidate's cone aims at the pla
 
 Candidates are padded to a common count C; ``n_cand[i]`` says how many of agent i's are real,
 and ``move[i, c]`` is the index of candidate c in the displacement set (-1 for padding).
+
+Planning over the belief (ours, issue "holding the target"): given S positions x_s drawn from
+the target's predicted density with weights w_s (sum 1), the objective of a joint choice is
+sum_s w_s Xi^N_n(p_D^1(x_s), ..., p_D^N(x_s)), each p_D^i(x_s) Eq. (9) for agent i at its
+candidate and level with its cone still aimed at x_bar; Eq. (13) is unchanged (cones aimed at
+x_bar). ``p_d_samples[s, i, c, l]`` tabulates it; without samples (the paper's point objective)
+it is None and every solver reads ``p_d`` as the one sample x_bar with weight 1.
 ``kernel_gain_table`` is the compiled builder of ``gain``; ``gain_table_reference`` is its
 numpy twin, held to it by the tests.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
@@ -43,6 +50,9 @@ class Problem:
     cand_pos: np.ndarray  # (N, C, 3) candidate positions [m] (padding repeats hover)
     p_d: np.ndarray  # (N, C, L) Eq. (9) at x_bar; 0 for padding
     gain: np.ndarray  # (N, N, C, C) receiver i at ci, sender j at cj; 0 on i == j and padding
+    samples: np.ndarray | None = None  # (S, 3) x_s, positions of the belief [m]; None: the point x_bar
+    weights: np.ndarray | None = None  # (S,) w_s, summing to 1
+    p_d_samples: np.ndarray | None = None  # (S, N, C, L) Eq. (9) at x_s, cones aimed at x_bar
 
     @property
     def n_agents(self) -> int:
@@ -52,6 +62,26 @@ class Problem:
     def n_levels(self) -> int:
         return int(self.levels_w.shape[0])
 
+    def objective_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """p_D at every sample, (S, N, C, L), and the weights (S,): the solvers' objective is
+        sum_s w_s Xi(p_D at x_s); the point objective is the one sample x_bar, weight 1."""
+        if self.p_d_samples is None:
+            return self.p_d[None], np.ones(1)
+        return self.p_d_samples, self.weights
+
+    def guarded(self, n_planned: int) -> "Problem":
+        """This problem with its agents from ``n_planned`` on held at hover, adding nothing to
+        the objective (p_D = 0 at every sample) but still receivers of Eq. (13)."""
+        n_cand = self.n_cand.copy()
+        n_cand[n_planned:] = 1
+        p_d = self.p_d.copy()
+        p_d[n_planned:] = 0.0
+        p_s = None
+        if self.p_d_samples is not None:
+            p_s = self.p_d_samples.copy()
+            p_s[:, n_planned:] = 0.0
+        return replace(self, n_cand=n_cand, p_d=p_d, p_d_samples=p_s)
+
 
 @dataclass(frozen=True)
 class Solution:
@@ -59,7 +89,7 @@ class Solution:
 
     move: np.ndarray  # (N,) index into the displacement set (0 = hover)
     level: np.ndarray  # (N,) index into antenna.levels_w
-    objective: float  # Xi^N_n of this choice at x_bar
+    objective: float  # Xi^N_n of this choice at x_bar (averaged over the samples when planning over the belief)
     feasible: bool  # Eq. (13) holds for every agent (reported even when constraints are off)
     optimal: bool = False  # proven optimal (only `exact` proves it, when its budget suffices)
     gap: float = float("nan")  # certified bound on (optimum - objective); 0 when optimal, NaN: no certificate
@@ -101,12 +131,30 @@ def gain_table_reference(cand_pos, n_cand, aim, antenna: AntennaModel) -> np.nda
     return g
 
 
+def belief_weights(samples, weights) -> tuple[np.ndarray, np.ndarray]:
+    """``samples`` as (S, 3) and ``weights`` as (S,) normalised to sum 1 (None: uniform).
+
+    Raises ``ValueError`` on an empty, non-finite or mis-shaped sample, or on negative weights
+    or weights summing to 0."""
+    x = np.asarray(samples, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 1 or not np.all(np.isfinite(x)):
+        raise ValueError(f"belief samples must be finite positions of shape (S, 3) with S >= 1, got shape {x.shape}")
+    if weights is None:
+        return x, np.full(x.shape[0], 1.0 / x.shape[0])
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (x.shape[0],) or not np.all(np.isfinite(w)) or np.any(w < 0) or not w.sum() > 0:
+        raise ValueError("belief weights must be S finite values >= 0 with a positive sum")
+    return x, w / w.sum()
+
+
 def build_problem(positions, aim, displacements, antenna: AntennaModel, low, high,
-                  at_least: int, constraints: bool) -> Problem:
+                  at_least: int, constraints: bool, samples=None, weights=None) -> Problem:
     """Precompute one step's problem: candidates inside the area, Eq. (9) and the pair gains.
 
-    Raises ``ValueError`` when an agent lies outside the area (hover must be admissible) or
-    when ``at_least`` is not in 1..N.
+    ``samples`` (S, 3) and ``weights`` (S,) (None: uniform; normalised to sum 1) make the
+    objective the belief average of Xi (module docstring); None keeps Eq. (12) at ``aim``.
+    Raises ``ValueError`` when an agent lies outside the area (hover must be admissible),
+    when ``at_least`` is not in 1..N, or on a bad sample or weight.
     """
     u = np.atleast_2d(np.asarray(positions, dtype=np.float64))
     x_bar = np.asarray(aim, dtype=np.float64).reshape(3)
@@ -134,8 +182,16 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
         np.ascontiguousarray(cand_pos), cand_axis, n_cand,
         float(antenna.height), antenna.tan_half, float(antenna.r0), float(antenna.n_e),
     )
+    belief = {}
+    if samples is not None:
+        x_s, w = belief_weights(samples, weights)
+        aims = np.broadcast_to(x_bar, cand_pos.shape)[None]
+        g_s = cone_gain(x_s[:, None, None, :], cand_pos[None], aims, antenna) * valid  # (S, N, C)
+        scale = levels_w / antenna.l_max * antenna.p_d_max
+        belief = dict(samples=x_s, weights=w,
+                      p_d_samples=np.ascontiguousarray(scale[None, None, None, :] * g_s[..., None]))
     return Problem(
         positions=u, aim=x_bar, displacements=D, levels_w=levels_w, delta_w=float(antenna.delta_w),
         at_least=int(at_least), constraints=bool(constraints), n_cand=n_cand, move=move,
-        cand_pos=cand_pos, p_d=np.ascontiguousarray(p_d), gain=gain,
+        cand_pos=cand_pos, p_d=np.ascontiguousarray(p_d), gain=gain, **belief,
     )
