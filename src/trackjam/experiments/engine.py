@@ -1,28 +1,29 @@
-"""Running an experiment's trials on a local process pool or a Dask cluster, resumably.
+"""Running an experiment's trials, resumably, on this process, a local pool or a Dask cluster.
 
-Both backends go through one ``concurrent.futures`` loop: a local ``ProcessPoolExecutor``
-(spawn start method, one numba thread per worker), an in-process executor for one worker, or
-``distributed.Client(address).get_executor()`` for an existing Dask cluster. The client writes
-each finished trial at once as its own Parquet file in ``OUT/trials/``; a rerun into the same
-OUT skips the trials already there. ``summary.csv`` depends only on the trial records, which
-depend only on (experiment, trials, steps, seed, overrides): never on workers or backend.
+All backends go through one ``concurrent.futures`` loop (:mod:`trackjam.experiments.backends`).
+The client writes each finished trial at once as its own Parquet file in ``OUT/trials/``; a
+rerun into the same OUT reads back the trials that are there and intact, re-runs the damaged
+ones and ignores files that are not its trials. ``summary.csv`` depends only on the trial
+records, which depend only on (experiment, trials, steps, seed, overrides): never on workers or
+backend. Nothing is written before the options, the scenarios, OUT and the scheduler (when
+there is one) have all been checked.
 """
 
 from __future__ import annotations
 
 import json
-import multiprocessing
-import os
-from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
-from contextlib import contextmanager
-from dataclasses import dataclass
+import tempfile
+from concurrent.futures import FIRST_COMPLETED, Future, wait
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping
+from typing import Any, Callable, Mapping
 
 import trackjam
 from trackjam.config import Scenario
 from trackjam.errors import ConfigError
+from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor
 from trackjam.experiments.definitions import (
+    Experiment,
     base_data,
     configuration_columns,
     draw_for,
@@ -33,16 +34,16 @@ from trackjam.experiments.progress import make_reporter
 from trackjam.experiments.summary import (
     METRICS,
     TIMING,
-    finished_trials,
+    DamagedTrial,
+    parse_trial_filename,
     read_trial,
     table_rows,
-    trial_filename,
     write_table,
     write_trial,
 )
+from trackjam.files import atomic_write, is_temporary
 
 TrialFunction = Callable[[Scenario], Mapping[str, Any]]
-CONNECT_TIMEOUT_S = 5.0
 
 
 def simulate_trial(scenario: Scenario) -> dict[str, Any]:
@@ -60,83 +61,12 @@ def simulate_trial(scenario: Scenario) -> dict[str, Any]:
     return record
 
 
-def _one_numba_thread() -> None:
-    """Trials run side by side: each worker gets one numba thread (before numba is imported
-    when possible, else through ``numba.set_num_threads``)."""
-    os.environ["NUMBA_NUM_THREADS"] = "1"
-    import sys
-
-    numba = sys.modules.get("numba")
-    if numba is not None:
-        numba.set_num_threads(1)
-
-
 def run_trial(trial: TrialFunction, experiment: str, config: int, index: int, scenario: Scenario) -> dict:
     """Worker side of one trial: the record the client writes to ``OUT/trials/``."""
-    _one_numba_thread()
+    one_numba_thread()
     record = dict(trial(scenario))
     record.update(experiment=experiment, config=config, trial=index, seed=scenario.seed)
     return record
-
-
-class SerialExecutor(Executor):
-    """One worker: trials run in this process, one at a time, when their result is awaited."""
-
-    def __init__(self) -> None:
-        self._queue: list[tuple[Future, Callable, tuple]] = []
-
-    def submit(self, fn, /, *args, **kwargs) -> Future:
-        f: Future = Future()
-        self._queue.append((f, fn, args))
-        return f
-
-    def run_next(self) -> None:
-        f, fn, args = self._queue.pop(0)
-        if f.set_running_or_notify_cancel():
-            try:
-                f.set_result(fn(*args))
-            except BaseException as err:  # handed to the caller through the future
-                f.set_exception(err)
-
-    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
-        for f, _, _ in self._queue:
-            f.cancel()
-        self._queue.clear()
-
-
-@contextmanager
-def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[Executor, int]]:
-    """The executor and how many trials to keep in flight."""
-    if scheduler:
-        yield from _dask_executor(scheduler)
-        return
-    n = workers or os.cpu_count() or 1
-    if n == 1:
-        ex: Executor = SerialExecutor()
-    else:
-        ex = ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn"), initializer=_one_numba_thread)
-    try:
-        yield ex, 2 * n
-    except BaseException:
-        ex.shutdown(wait=False, cancel_futures=True)
-        raise
-    ex.shutdown(wait=True)
-
-
-def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
-    try:
-        from distributed import Client
-    except ImportError:
-        raise ConfigError("--scheduler needs dask.distributed: pip install 'trackjam[dask]'") from None
-    try:
-        client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as err:
-        msg = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise ConfigError(f"cannot reach the Dask scheduler at {address} within {CONNECT_TIMEOUT_S:g} s: {msg}") from None
-    try:
-        yield client.get_executor(), 1 << 30  # the scheduler balances the load: submit everything
-    finally:
-        client.close()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -149,6 +79,7 @@ class ExperimentResult:
     timing: list[dict[str, Any]]  # rows of timing.csv
     ran: int  # trials run now (the others were found in OUT)
     files: list[Path]
+    notes: list[str] = field(default_factory=list)  # what the resume found damaged or foreign
 
 
 def _parameters(name: str, trials: int, steps: int, seed: int, overrides: list[str], trial: TrialFunction) -> dict:
@@ -163,21 +94,105 @@ def _parameters(name: str, trials: int, steps: int, seed: int, overrides: list[s
     }
 
 
-def _claim(out: Path, params: dict) -> None:
-    """Create OUT, or check that it holds the same experiment with the same parameters."""
+def read_parameters(meta: Path) -> dict:
+    """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable."""
+    try:
+        params = json.loads(meta.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        reason = "empty" if meta.is_file() and meta.stat().st_size == 0 else type(err).__name__
+        raise ConfigError(f"{meta}: unreadable ({reason}); remove it to start over, or choose another --out") from None
+    if not isinstance(params, dict) or "experiment" not in params:
+        raise ConfigError(f"{meta}: not an experiment's parameters; remove it to start over, or choose another --out")
+    return params
+
+
+def _check_out(out: Path, params: dict) -> None:
+    """Refuse an OUT that is a file, unwritable, or holds something else; writes nothing."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out}: is a file, not a folder")
     meta = out / "experiment.json"
-    if meta.exists():
-        old = json.loads(meta.read_text())
+    if meta.exists() or meta.is_symlink():
+        old = read_parameters(meta)
         diff = [k for k in sorted(set(old) | set(params)) if old.get(k) != params.get(k)]
         if diff:
             parts = ", ".join(f"{k}: {old.get(k)!r} there, {params.get(k)!r} now" for k in diff)
             raise ConfigError(f"{out} holds a different experiment ({parts}); choose another --out")
-    elif out.exists() and any(out.iterdir()):
+        if (out / "trials").exists() and not (out / "trials").is_dir():
+            raise ConfigError(f"--out {out}: trials is a file, not a folder")
+    elif out.is_dir() and any(out.iterdir()):
         raise ConfigError(f"{out} is not empty and holds no experiment.json; choose another --out")
-    else:
+    parent = out.absolute()
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ConfigError(f"--out {out}: {parent} is a file, not a folder")
+    try:  # a real probe: os.access says yes to root even on read-only file systems
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as err:
+        raise ConfigError(f"--out {out}: {parent} is not writable ({err.strerror})") from None
+
+
+def _claim(out: Path, params: dict) -> None:
+    """Create OUT/trials and write experiment.json (atomically) unless it is there."""
+    try:
         (out / "trials").mkdir(parents=True, exist_ok=True)
-        meta.write_text(json.dumps(params, indent=2) + "\n")
-    (out / "trials").mkdir(exist_ok=True)
+        meta = out / "experiment.json"
+        if not meta.exists():
+            atomic_write(meta, lambda tmp: tmp.write_text(json.dumps(params, indent=2) + "\n"))
+    except OSError as err:
+        raise ConfigError(f"--out {out}: cannot write there ({err.strerror or err})") from None
+
+
+def _read_back(folder: Path, name: str, seeds: Mapping[tuple[int, int], int]) -> tuple[dict, list[str]]:
+    """The intact trial records in ``folder`` by (config, trial), and one line for each kind of
+    file passed over: damaged trials (re-run) and files that are not this experiment's trials
+    (left alone). Stale temporary files of interrupted writes are removed."""
+    records: dict[tuple[int, int], dict] = {}
+    damaged, foreign = [], []
+    for p in sorted(folder.iterdir()):
+        if is_temporary(p):
+            p.unlink(missing_ok=True)
+            continue
+        key = parse_trial_filename(p.name)
+        if key is None or key not in seeds or not p.is_file():
+            foreign.append(p.name)
+            continue
+        try:
+            record = read_trial(p)
+        except DamagedTrial:
+            damaged.append(p.name)
+            continue
+        if (record["experiment"], record["config"], record["trial"], record["seed"]) != (name, *key, seeds[key]):
+            damaged.append(p.name)
+            continue
+        records[key] = record
+    notes = []
+    if damaged:
+        notes.append(f"{len(damaged)} damaged trial file(s) in {folder} will be run again: {_names(damaged)}")
+    if foreign:
+        notes.append(f"ignoring {len(foreign)} file(s) in {folder} that are not trials of this experiment: {_names(foreign)}")
+    return records, notes
+
+
+def _names(names: list[str], shown: int = 3) -> str:
+    return ", ".join(names[:shown]) + (f" and {len(names) - shown} more" if len(names) > shown else "")
+
+
+def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str]):
+    """Every (config, trial) scenario, built and so validated, and the configuration columns."""
+    base = base_data(experiment, steps, overrides)
+    draws = [draw_for(base, seed, k) for k in range(trials)]
+    scenarios = {
+        (c.index, d.index): trial_scenario(experiment, base, c, d, seed)
+        for c in experiment.configurations
+        for d in draws
+    }
+    configurations = [
+        {"config": c.index, "label": c.label, **configuration_columns(scenarios[(c.index, 0)])}
+        for c in experiment.configurations
+    ]
+    return scenarios, configurations
 
 
 def run_experiment(
@@ -214,79 +229,64 @@ def run_experiment(
     overrides = list(overrides or [])
     out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
 
-    # every scenario is built (and so validated) before anything runs or is written
-    base = base_data(experiment, steps, overrides)
-    draws = [draw_for(base, seed, k) for k in range(trials)]
-    scenarios = {
-        (c.index, d.index): trial_scenario(experiment, base, c, d, seed)
-        for c in experiment.configurations
-        for d in draws
-    }
-    configurations = [
-        {"config": c.index, "label": c.label, **configuration_columns(scenarios[(c.index, 0)])}
-        for c in experiment.configurations
-    ]
-
+    scenarios, configurations = _plan(experiment, trials, steps, seed, overrides)
     report = make_reporter(progress, experiment, configurations, total=len(scenarios))
-    _claim(out, _parameters(name, trials, steps, seed, overrides, trial))
-    folder = out / "trials"
-    done = finished_trials(folder)
-    todo = [key for key in scenarios if key not in done]
-    records = [read_trial(folder / trial_filename(c, k)) for (c, k) in sorted(done & set(scenarios))]
-    report.start(records)
+    params = _parameters(name, trials, steps, seed, overrides, trial)
+    _check_out(out, params)
 
-    if todo:
-        with open_executor(workers, scheduler) as (executor, window):
-            pending: set[Future] = set()
-            queue = iter(todo)
-            try:
-                while True:
-                    while len(pending) < window and (key := next(queue, None)) is not None:
-                        pending.add(executor.submit(run_trial, trial, name, key[0], key[1], scenarios[key]))
-                    if not pending:
-                        break
-                    if isinstance(executor, SerialExecutor):
-                        executor.run_next()
-                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for f in finished:
-                        record = f.result()
-                        write_trial(folder, record)
-                        records.append(record)
-                        report.trial(record)
-            finally:
-                for f in pending:
-                    f.cancel()
-                report.stop()
-    else:
-        report.stop()
+    with open_executor(workers, scheduler) as (executor, window):
+        _claim(out, params)
+        folder = out / "trials"
+        found, notes = _read_back(folder, name, {key: s.seed for key, s in scenarios.items()})
+        for line in notes:
+            report.note(line)
+        records = [found[key] for key in sorted(found)]
+        todo = [key for key in scenarios if key not in found]
+        report.start(records)
+        pending: set[Future] = set()
+        queue = iter(todo)
+        try:
+            while True:
+                while len(pending) < window and (key := next(queue, None)) is not None:
+                    pending.add(executor.submit(run_trial, trial, name, key[0], key[1], scenarios[key]))
+                if not pending:
+                    break
+                if isinstance(executor, SerialExecutor):
+                    executor.run_next()
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    record = f.result()
+                    write_trial(folder, record)
+                    records.append(record)
+                    report.trial(record)
+        finally:
+            for f in pending:
+                f.cancel()
+            report.stop()
 
-    return _finish(out, experiment, configurations, records, ran=len(todo))
+    return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes)
 
 
-def _finish(out: Path, experiment, configurations: list[dict], records: list[Mapping], ran: int) -> ExperimentResult:
+def _finish(out: Path, experiment, configurations: list[dict], records: list[Mapping], ran: int,
+            notes: list[str]) -> ExperimentResult:
     from trackjam.experiments.figures import write_figure
 
     summary = table_rows(records, configurations, METRICS)
     timing = table_rows(records, configurations, TIMING)
     write_table(out / "summary.csv", summary)
     write_table(out / "timing.csv", timing)
-    files = [out / "summary.csv", out / "timing.csv", write_figure(experiment, summary, out / experiment.figure)]
-    return ExperimentResult(out, summary, timing, ran, files)
+    figure = atomic_write(out / experiment.figure, lambda tmp: write_figure(experiment, summary, tmp))
+    return ExperimentResult(out, summary, timing, ran, [out / "summary.csv", out / "timing.csv", figure], notes)
 
 
 def summarise_folder(out: Path | str) -> ExperimentResult:
-    """Rebuild summary.csv, timing.csv and the figure from OUT's trial files (no simulation)."""
+    """Rebuild summary.csv, timing.csv and the figure from OUT's intact trial files (no simulation)."""
     out = Path(out)
     meta = out / "experiment.json"
     if not meta.exists():
         raise ConfigError(f"{out}: no experiment.json here")
-    params = json.loads(meta.read_text())
+    params = read_parameters(meta)
     experiment = get_experiment(params["experiment"])
-    base = base_data(experiment, params["steps"], params["overrides"])
-    d0 = draw_for(base, params["seed"], 0)
-    configurations = [
-        {"config": c.index, "label": c.label, **configuration_columns(trial_scenario(experiment, base, c, d0, params["seed"]))}
-        for c in experiment.configurations
-    ]
-    records = [read_trial(p) for p in sorted((out / "trials").glob("c*.parquet"))]
-    return _finish(out, experiment, configurations, records, ran=0)
+    scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
+    found, notes = _read_back(out / "trials", experiment.name, {key: s.seed for key, s in scenarios.items()})
+    return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)

@@ -28,6 +28,10 @@ class _Reporter:
             parts.append(f"{label} {fmt.format(sum(float(r[key]) for r in self.records) / n)}")
         return "running means: " + ", ".join(parts)
 
+    def note(self, line: str) -> None:
+        """One line about what a resume found (damaged or foreign files), on stderr."""
+        print(f"{self.name}: {line}", file=sys.stderr, flush=True)
+
     def start(self, records: list[Mapping[str, Any]]) -> None:
         self.records = list(records)
         self.resumed = len(records)
@@ -40,7 +44,8 @@ class _Reporter:
 
 
 class _Silent(_Reporter):
-    pass
+    def note(self, line: str) -> None:
+        pass
 
 
 class _Lines(_Reporter):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -15,7 +16,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy import stats
 
-from trackjam.files import atomic_write, is_temporary
+from trackjam.files import atomic_write
 
 # (column stem in the tables, key of a trial record, meaning [unit], paper)
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -66,20 +67,39 @@ def write_trial(folder: Path, record: Mapping[str, Any]) -> Path:
     return atomic_write(final, lambda tmp: pq.write_table(record_table(record), tmp))
 
 
+class DamagedTrial(ValueError):
+    """A trial file that cannot be read back whole (truncated, empty, or not a trial record)."""
+
+
+_IDENTITY = (("experiment", str), ("config", int), ("trial", int), ("seed", int))
+
+
 def read_trial(path: Path) -> dict:
-    return pq.read_table(path).to_pylist()[0]
+    """The record in one trial file; :class:`DamagedTrial` if it is not a complete one."""
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowException, OSError, ValueError) as err:
+        raise DamagedTrial(f"{path.name}: {type(err).__name__}") from None
+    missing = [k for k, _ in _IDENTITY if k not in table.column_names]
+    missing += [k for k in RECORD_KEYS if k not in table.column_names]
+    if table.num_rows != 1 or missing:
+        raise DamagedTrial(f"{path.name}: {table.num_rows} rows, missing {missing}")
+    record = table.to_pylist()[0]
+    if any(not isinstance(record[k], kind) for k, kind in _IDENTITY):
+        raise DamagedTrial(f"{path.name}: a null or mistyped identity column")
+    return record
 
 
-def finished_trials(folder: Path) -> set[tuple[int, int]]:
-    """(config, trial) of every complete trial file; stale temporary files are removed."""
-    done = set()
-    for p in folder.iterdir():
-        if is_temporary(p):
-            p.unlink(missing_ok=True)
-        elif p.suffix == ".parquet" and p.name.startswith("c"):
-            c, _, t = p.stem.partition("-t")
-            done.add((int(c[1:]), int(t)))
-    return done
+_TRIAL_NAME = re.compile(r"^c(\d{2,})-t(\d{4,})\.parquet$")
+
+
+def parse_trial_filename(name: str) -> tuple[int, int] | None:
+    """(config, trial) of a name :func:`trial_filename` writes, else None."""
+    m = _TRIAL_NAME.match(name)
+    if m is None:
+        return None
+    key = int(m[1]), int(m[2])
+    return key if trial_filename(*key) == name else None
 
 
 # ---------------------------------------------------------------------------------------------

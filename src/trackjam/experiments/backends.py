@@ -1,0 +1,214 @@
+"""Where an experiment's trials run: in this process, on a local pool of processes, or on a Dask
+cluster, all behind one ``concurrent.futures`` interface.
+
+- The local pool's workers die with their parent: each one polls its parent's pid and exits when
+  it changes (the parent was killed, even by SIGKILL); a SIGTERM of the parent terminates them;
+  they ignore Ctrl-C, which the parent handles.
+- A Dask scheduler is reached in two steps, each bounded by ``CONNECT_TIMEOUT_S``: a plain TCP
+  pre-flight that reads the handshake a Dask scheduler sends first and checks that it is one
+  (an HTTP or SSH server, or a silent port, would otherwise hang Dask's client or make it
+  allocate a frame size read from garbage), then the client itself.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import re
+import signal
+import socket
+import struct
+import threading
+import time
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from contextlib import contextmanager
+from typing import Callable, Iterator
+
+from trackjam.errors import ConfigError
+
+CONNECT_TIMEOUT_S = 5.0
+HANDSHAKE_MAX_BYTES = 1 << 20  # a scheduler's handshake is ~60 bytes; garbage reads as exabytes
+PARENT_POLL_S = 0.2
+_ADDRESS = re.compile(r"^(?:(?P<scheme>[a-z][a-z0-9+.-]*)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})/?$")
+
+
+def one_numba_thread() -> None:
+    """Trials run side by side: each worker gets one numba thread (before numba is imported
+    when possible, else through ``numba.set_num_threads``)."""
+    os.environ["NUMBA_NUM_THREADS"] = "1"
+    import sys
+
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        numba.set_num_threads(1)
+
+
+def _exit_when_orphaned(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)  # the parent is gone: nobody will read this worker's result
+
+
+def pool_worker_setup(parent_pid: int) -> None:
+    """Initializer of a local pool worker."""
+    one_numba_thread()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_when_orphaned, args=(parent_pid,), name="orphan-watch", daemon=True).start()
+
+
+class LocalPool(ProcessPoolExecutor):
+    """A spawn-started process pool whose workers never outlive this process."""
+
+    def __init__(self, workers: int) -> None:
+        super().__init__(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                         initializer=pool_worker_setup, initargs=(os.getpid(),))
+
+    def terminate(self) -> None:
+        """Stop at once: running trials are killed, queued ones cancelled."""
+        processes = list((getattr(self, "_processes", None) or {}).values())
+        for p in processes:
+            p.terminate()
+        self.shutdown(wait=False, cancel_futures=True)
+        for p in processes:
+            p.join(timeout=5)
+
+
+class SerialExecutor(Executor):
+    """One worker: trials run in this process, one at a time, when their result is awaited."""
+
+    def __init__(self) -> None:
+        self._queue: list[tuple[Future, Callable, tuple]] = []
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        f: Future = Future()
+        self._queue.append((f, fn, args))
+        return f
+
+    def run_next(self) -> None:
+        f, fn, args = self._queue.pop(0)
+        if f.set_running_or_notify_cancel():
+            try:
+                f.set_result(fn(*args))
+            except BaseException as err:  # handed to the caller through the future
+                f.set_exception(err)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        for f, _, _ in self._queue:
+            f.cancel()
+        self._queue.clear()
+
+
+@contextmanager
+def _sigterm_exits() -> Iterator[None]:
+    """Inside, SIGTERM raises SystemExit(143), so the pool is terminated on the way out."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextmanager
+def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[Executor, int]]:
+    """The executor and how many trials to keep in flight. With ``scheduler`` the connection is
+    made (or refused with a one-line ConfigError) on entry, before the caller writes anything."""
+    if scheduler:
+        yield from _dask_executor(scheduler)
+        return
+    n = workers or os.cpu_count() or 1
+    if n == 1:
+        ex = SerialExecutor()
+        try:
+            yield ex, 2
+        finally:
+            ex.shutdown()
+        return
+    pool = LocalPool(n)
+    with _sigterm_exits():
+        try:
+            yield pool, 2 * n
+        except BaseException:
+            pool.terminate()
+            raise
+    pool.shutdown(wait=True)
+
+
+def parse_scheduler_address(address: str) -> tuple[str, str, int]:
+    """(scheme, host, port) of ``[scheme://]HOST:PORT``, or a one-line ConfigError."""
+    m = _ADDRESS.match(address.strip())
+    if m is None or not 0 < int(m["port"]) < 65536:
+        raise ConfigError(f"--scheduler {address!r}: not an address of the form tcp://HOST:PORT")
+    return (m["scheme"] or "tcp"), m["host"].strip("[]"), int(m["port"])
+
+
+def _read_exactly(sock: socket.socket, n: int, deadline: float) -> bytes:
+    data = b""
+    while len(data) < n:
+        sock.settimeout(max(deadline - time.monotonic(), 0.01))
+        chunk = sock.recv(min(n - len(data), 1 << 16))
+        if not chunk:
+            raise ConnectionError("the connection was closed")
+        data += chunk
+    return data
+
+
+def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Refuse, with one line and within about ``timeout_s``, an address that is not a reachable
+    Dask scheduler speaking plain TCP."""
+    scheme, host, port = parse_scheduler_address(address)
+    if scheme != "tcp":
+        return  # TLS, UCX, websockets: left to Dask's own connection timeout
+    where = f"the Dask scheduler at {address}"
+    deadline = time.monotonic() + timeout_s
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except OSError as err:
+        raise ConfigError(f"cannot reach {where} within {timeout_s:g} s: {err.strerror or err}") from None
+    with sock:
+        try:
+            head = _read_exactly(sock, 8, deadline)
+            (size,) = struct.unpack("<Q", head)
+            if not 0 < size <= HANDSHAKE_MAX_BYTES:
+                raise ValueError(f"it sent {head!r}")
+            _check_handshake(_read_exactly(sock, size, deadline))
+        except (TimeoutError, socket.timeout):
+            raise ConfigError(f"{address} accepted the connection but sent no Dask handshake within "
+                              f"{timeout_s:g} s: not a Dask scheduler?") from None
+        except (OSError, ValueError) as err:
+            raise ConfigError(f"{address} does not speak Dask's protocol ({err}): not a Dask scheduler?") from None
+
+
+def _check_handshake(payload: bytes) -> None:
+    import msgpack
+    from distributed.protocol.utils import unpack_frames
+
+    try:
+        info = msgpack.loads(unpack_frames(payload)[0], raw=False)
+    except Exception as err:  # whatever garbage does to the decoders
+        raise ValueError(f"an undecodable handshake: {type(err).__name__}") from None
+    if not (isinstance(info, dict) and "python" in info):
+        raise ValueError("a handshake without the scheduler's Python version")
+
+
+def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ConfigError("--scheduler needs dask.distributed: pip install 'trackjam[dask]'") from None
+    check_dask_scheduler(address)
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as err:
+        msg = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ConfigError(f"cannot reach the Dask scheduler at {address} within {CONNECT_TIMEOUT_S:g} s: {msg}") from None
+    try:
+        yield client.get_executor(), 1 << 30  # the scheduler balances the load: submit everything
+    finally:
+        client.close()

@@ -1,0 +1,255 @@
+"""What a damaged folder, a wrong address or a killed sweep does: one line or a clean re-run,
+never a traceback, a hang, a lost trial or a process left behind."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+from test_engine import ENV, SWEEP, _free_port, _kill, _start, _wait_for_files
+
+from trackjam.errors import ConfigError
+from trackjam.experiments.backends import check_dask_scheduler, parse_scheduler_address
+from trackjam.experiments.engine import run_experiment, summarise_folder
+from trackjam.experiments.summary import DamagedTrial, parse_trial_filename, read_trial, trial_filename
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("fresh")
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    return out
+
+
+def test_trial_file_names_round_trip_and_nothing_else_parses():
+    assert parse_trial_filename(trial_filename(3, 17)) == (3, 17)
+    for name in ("copy-of-c01-t0000.parquet", "c01-t0000.parquet.bak", "c1-t0000.parquet",
+                 "c01-t0000 (1).parquet", "C01-t0000.parquet", "c01-t00001.parquet"):
+        assert parse_trial_filename(name) is None, name
+
+
+def test_damaged_trials_are_run_again_and_strangers_are_ignored(fresh, tmp_path, capsys):
+    out = tmp_path / "resume"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    trials = out / "trials"
+    good = (trials / "c01-t0000.parquet").read_bytes()
+    (trials / "c01-t0001.parquet").write_bytes(good[: len(good) // 2])  # truncated
+    (trials / "c02-t0000.parquet").write_bytes(b"")  # empty
+    (trials / "c02-t0001.parquet").write_bytes(good)  # intact, but another trial's record
+    (trials / "copy-of-c01.parquet").write_bytes(good)
+    (trials / "notes.txt").write_text("mine")
+
+    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "progress": "lines"})
+    err = capsys.readouterr().err.splitlines()
+    assert r.ran == 3
+    assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
+    assert err == [f"constraints: {line}" for line in r.notes] and len(err) == 2
+    assert err[0].startswith("constraints: 3 damaged trial file(s)") and "c02-t0000.parquet" in err[0]
+    assert "ignoring 2 file(s)" in err[1] and "copy-of-c01.parquet" in err[1] and "notes.txt" in err[1]
+    assert (trials / "copy-of-c01.parquet").read_bytes() == good  # not ours: left alone
+    assert (trials / "notes.txt").read_text() == "mine"
+    for key in ((1, 1), (2, 0), (2, 1)):
+        assert read_trial(trials / trial_filename(*key))["trial"] == key[1]
+    assert summarise_folder(out).summary == r.summary
+
+
+def test_reading_a_damaged_trial_names_the_file():
+    with pytest.raises(DamagedTrial, match="c01-t0000.parquet"):
+        read_trial(Path("/nonexistent/c01-t0000.parquet"))
+
+
+@pytest.mark.parametrize("content", [b"", b"{\"experiment\": ", b"\xff\xfe\x00", b"[1, 2]"])
+def test_an_unreadable_experiment_json_is_one_line_and_changes_nothing(fresh, tmp_path, content):
+    out = tmp_path / "exp"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    (out / "experiment.json").write_bytes(content)
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    with pytest.raises(ConfigError, match="experiment.json: .*remove it to start over") as err:
+        run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert "\n" not in str(err.value)
+    with pytest.raises(ConfigError):
+        summarise_folder(out)
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_experiment_json_is_written_whole(fresh):
+    params = json.loads((fresh / "experiment.json").read_text())
+    assert params["experiment"] == "constraints" and params["seed"] == SWEEP["seed"]
+    assert not list(fresh.glob(".*"))
+
+
+def test_out_pointing_at_a_file_is_one_line_and_exit_2(tmp_path):
+    target = tmp_path / "a-file"
+    target.write_text("keep me")
+    for out in (target, target / "below"):
+        with pytest.raises(ConfigError, match="is a file, not a folder") as err:
+            run_experiment("constraints", workers=1, out=out, **SWEEP)
+        assert "\n" not in str(err.value)
+    proc = subprocess.run(
+        [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--out", str(target)],
+        capture_output=True, text=True, env=ENV, timeout=120,
+    )
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "is a file, not a folder" in proc.stderr
+    assert target.read_text() == "keep me"
+
+
+# --- --scheduler at something that is not a Dask scheduler --------------------------------------
+
+
+class _FakeServer:
+    """A TCP server on 127.0.0.1 that greets like SSH, answers like HTTP, or says nothing."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.sock = socket.create_server(("127.0.0.1", 0))
+        self.address = f"tcp://127.0.0.1:{self.sock.getsockname()[1]}"
+        self.conns: list[socket.socket] = []
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            self.conns.append(conn)
+            if self.kind == "ssh":
+                conn.sendall(b"SSH-2.0-OpenSSH_9.2p1 Debian-2\r\n")
+            elif self.kind == "http":  # answers whatever arrives, like a confused web server
+                threading.Thread(target=self._http, args=(conn,), daemon=True).start()
+
+    @staticmethod
+    def _http(conn: socket.socket) -> None:
+        try:
+            if conn.recv(1024):
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self.sock.close()
+        for c in self.conns:
+            c.close()
+
+
+@pytest.mark.parametrize("kind, words", [
+    ("ssh", "does not speak Dask's protocol"),
+    ("http", "sent no Dask handshake within"),
+    ("silent", "sent no Dask handshake within"),
+])
+def test_a_scheduler_address_that_speaks_something_else_is_refused_before_anything_is_written(kind, words, tmp_path):
+    server = _FakeServer(kind)
+    try:
+        with pytest.raises(ConfigError, match=words) as err:
+            run_experiment("constraints", scheduler=server.address, out=tmp_path / "out", **SWEEP)
+    finally:
+        server.close()
+    assert "\n" not in str(err.value) and server.address in str(err.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_pre_flight_times_out_on_a_silent_port():
+    server = _FakeServer("silent")
+    try:
+        with pytest.raises(ConfigError, match="within 0.3 s"):
+            check_dask_scheduler(server.address, timeout_s=0.3)
+    finally:
+        server.close()
+
+
+@pytest.mark.parametrize("address", ["notanaddress", "tcp://host", "tcp://host:99999", "host:port", ""])
+def test_a_malformed_scheduler_address_is_refused(address):
+    with pytest.raises(ConfigError, match="not an address of the form tcp://HOST:PORT"):
+        parse_scheduler_address(address)
+
+
+def test_scheduler_addresses_parse():
+    assert parse_scheduler_address("tcp://10.0.0.5:8786") == ("tcp", "10.0.0.5", 8786)
+    assert parse_scheduler_address("sched.local:8786") == ("tcp", "sched.local", 8786)
+    assert parse_scheduler_address("tls://[::1]:8786") == ("tls", "::1", 8786)
+
+
+def test_the_cli_with_a_bad_address_prints_one_line_and_no_traceback(tmp_path):
+    for address in ("notanaddress", f"tcp://127.0.0.1:{_free_port()}"):
+        proc = subprocess.run(
+            [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps", "2",
+             "--scheduler", address, "--out", str(tmp_path / "out")],
+            capture_output=True, text=True, env=ENV, timeout=120,
+        )
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.startswith("trackjam: error: ") and proc.stderr.count("\n") == 1, proc.stderr
+        assert not (tmp_path / "out").exists()
+
+
+# --- a killed sweep leaves no process behind -----------------------------------------------------
+
+
+def _children(pid: int) -> set[int]:
+    """Every live descendant of ``pid`` (Linux /proc)."""
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            fields = stat.rsplit(")", 1)[1].split()
+            if fields[0] != "Z":
+                parents[int(entry.name)] = int(fields[1])
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, pp in parents.items() if pp in frontier} - found
+        found |= frontier
+    return found
+
+
+def _alive(pids: set[int]) -> set[int]:
+    out = set()
+    for p in pids:
+        try:
+            state = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if state != "Z":
+            out.add(p)
+    return out
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc to list processes")
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
+    out = tmp_path / "sweep"
+    proc = _start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env={**ENV, "TRACKJAM_FAKE_SLEEP": "1"})
+    workers: set[int] = set()
+    try:
+        _wait_for_files(out / "trials", 1, proc, limit_s=120)
+        workers = _children(proc.pid)
+        assert len(workers) >= 2  # the pool's two workers (and multiprocessing's helper)
+        os.kill(proc.pid, sig)
+        proc.wait(timeout=60)
+        t0 = time.monotonic()
+        while _alive(workers) and time.monotonic() - t0 < 30:  # a guard against a hang
+            time.sleep(0.1)
+        assert not _alive(workers), f"left behind: {_alive(workers)}"
+        if sig == signal.SIGTERM:
+            assert proc.returncode == 128 + signal.SIGTERM
+    finally:
+        for p in _alive(workers):
+            os.kill(p, signal.SIGKILL)
+        _kill(proc)
+    # whatever was written is whole, and the sweep resumes to the uninterrupted result
+    kept = list((out / "trials").glob("c*.parquet"))
+    assert all(pq.read_table(p).num_rows == 1 for p in kept)
+    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trials": 4})
+    fresh = run_experiment("constraints", workers=1, out=tmp_path / "fresh", **{**SWEEP, "trials": 4})
+    assert r.notes == [] and r.ran == 8 - len(kept) and r.summary == fresh.summary
