@@ -1,5 +1,5 @@
-"""A cheap stand-in for the simulation, and a ``python -m sweep_helpers`` entry that runs a
-sweep with it (the interrupted-sweep test kills that process).
+"""A cheap stand-in for the simulation, a ``python -m sweep_helpers`` entry that runs a sweep
+with it (the interrupted-sweep tests kill that process), and the helpers those tests share.
 
 ``fake_trial`` is a deterministic function of the scenario (its seed, opening angle, number of
 controls and the drawn positions), so an engine that loses, duplicates, reorders or mixes up
@@ -10,8 +10,12 @@ be interrupted; it does not change any result.
 from __future__ import annotations
 
 import os
+import signal
+import socket
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -40,11 +44,48 @@ def fake_trial(scenario: Scenario) -> dict:
     }
 
 
+HERE = Path(__file__).resolve().parent
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]), "NUMBA_NUM_THREADS": "1"}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start(args: list[str], env=ENV) -> subprocess.Popen:
+    # its own session: killing its process group kills it and its children, nothing else
+    return subprocess.Popen(
+        [sys.executable, *args], env=env, start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+
+
+def kill(p: subprocess.Popen) -> None:
+    try:
+        os.killpg(p.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    p.wait()
+
+
+def wait_for_files(folder: Path, n: int, proc: subprocess.Popen | None = None, limit_s: float = 60) -> None:
+    t0 = time.monotonic()
+    while len(list(folder.glob("c*.parquet"))) < n:
+        assert proc is None or proc.poll() is None, "the sweep ended before it could be interrupted"
+        assert time.monotonic() - t0 < limit_s, "no trial finished"
+        time.sleep(0.05)
+
+
 def failing_trial(scenario: Scenario) -> dict:
     """``fake_trial``, except that trial 1 of every configuration raises."""
     if scenario.name.endswith("-t1"):
         raise RuntimeError(f"{scenario.name} failed")
     return fake_trial(scenario)
+
+
+SWEEP = dict(trials=2, steps=3, seed=7, progress="none", trial=fake_trial)  # 2 configurations x 2 trials
 
 
 if __name__ == "__main__":

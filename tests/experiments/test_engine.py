@@ -8,55 +8,15 @@ simulation, so the engine is tested on its own (test_real_trials.py runs the rea
 from __future__ import annotations
 
 import json
-import os
-import signal
-import socket
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
-from sweep_helpers import failing_trial, fake_trial
+from sweep_helpers import ENV, SWEEP, failing_trial, free_port, kill, start, wait_for_files
 
 from trackjam.errors import ConfigError
 from trackjam.experiments.engine import run_experiment, summarise_folder
 from trackjam.experiments.summary import read_table
-
-HERE = Path(__file__).resolve().parent
-ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]), "NUMBA_NUM_THREADS": "1"}
-SWEEP = dict(trials=2, steps=3, seed=7, progress="none", trial=fake_trial)  # 2 configurations x 2 trials
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _start(args: list[str], env=ENV) -> subprocess.Popen:
-    # its own session: killing its process group kills it and its children, nothing else
-    return subprocess.Popen(
-        [sys.executable, *args], env=env, start_new_session=True,
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )
-
-
-def _kill(p: subprocess.Popen) -> None:
-    try:
-        os.killpg(p.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    p.wait()
-
-
-def _wait_for_files(folder: Path, n: int, proc: subprocess.Popen | None = None, limit_s: float = 60) -> None:
-    t0 = time.monotonic()
-    while len(list(folder.glob("c*.parquet"))) < n:
-        assert proc is None or proc.poll() is None, "the sweep ended before it could be interrupted"
-        assert time.monotonic() - t0 < limit_s, "no trial finished"
-        time.sleep(0.05)
 
 
 @pytest.fixture(scope="module")
@@ -70,11 +30,11 @@ def reference(tmp_path_factory) -> bytes:
 @pytest.fixture(scope="module")
 def cluster():
     """A real Dask cluster on 127.0.0.1: a scheduler and two single-thread workers."""
-    address = f"tcp://127.0.0.1:{_free_port()}"
-    procs = [_start(["-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+    address = f"tcp://127.0.0.1:{free_port()}"
+    procs = [start(["-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
                      address.rsplit(":", 1)[1], "--no-dashboard"])]
     for _ in range(2):
-        procs.append(_start(["-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+        procs.append(start(["-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
                              "--no-dashboard", "--no-nanny"]))
     from distributed import Client
 
@@ -83,7 +43,7 @@ def cluster():
     client.close()
     yield address, procs
     for p in procs:
-        _kill(p)
+        kill(p)
 
 
 def test_the_summary_is_the_same_with_one_and_two_local_workers(reference, tmp_path):
@@ -134,7 +94,7 @@ def test_the_summary_is_the_same_on_a_dask_cluster_and_survives_a_worker_killed_
     # slow trials; once the first is written, one worker dies with whatever it was running
     monkeypatch.setenv("TRACKJAM_FAKE_SLEEP", "0.5")
     out = tmp_path / "killed"
-    killer = threading.Thread(target=lambda: (_wait_for_files(out / "trials", 1), _kill(procs[1])))
+    killer = threading.Thread(target=lambda: (wait_for_files(out / "trials", 1), kill(procs[1])))
     killer.start()
     r = run_experiment("constraints", scheduler=address, out=out, **{**SWEEP, "trials": 4})
     killer.join()
@@ -148,11 +108,11 @@ def test_the_summary_is_the_same_on_a_dask_cluster_and_survives_a_worker_killed_
 def test_a_sweep_killed_mid_run_resumes_to_the_same_summary(reference, tmp_path):
     out = tmp_path / "sweep"
     env = {**ENV, "TRACKJAM_FAKE_SLEEP": "0.4"}
-    proc = _start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env=env)
+    proc = start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env=env)
     try:
-        _wait_for_files(out / "trials", 2, proc)
+        wait_for_files(out / "trials", 2, proc)
     finally:
-        _kill(proc)  # SIGKILL to the sweep and its pool workers
+        kill(proc)  # SIGKILL to the sweep and its pool workers
     kept = len(list((out / "trials").glob("c*.parquet")))
     assert 2 <= kept < 8
     r = run_experiment("constraints", workers=2, out=out, **{**SWEEP, "trials": 4})
@@ -221,7 +181,7 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, kwargs, word
 
 
 def test_an_unreachable_scheduler_fails_with_a_clear_error_in_seconds(tmp_path):
-    address = f"tcp://127.0.0.1:{_free_port()}"  # nothing listens there
+    address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
     t0 = time.monotonic()
     with pytest.raises(ConfigError, match=f"cannot reach the Dask scheduler at {address}") as err:
         run_experiment("constraints", scheduler=address, out=tmp_path, **SWEEP)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
-from test_engine import ENV, SWEEP, _free_port, _kill, _start, _wait_for_files
+from sweep_helpers import ENV, SWEEP, free_port, kill, start, wait_for_files
 
 from trackjam.errors import ConfigError
 from trackjam.experiments.backends import check_dask_scheduler, parse_scheduler_address
@@ -180,7 +180,7 @@ def test_scheduler_addresses_parse():
 
 
 def test_the_cli_with_a_bad_address_prints_one_line_and_no_traceback(tmp_path):
-    for address in ("notanaddress", f"tcp://127.0.0.1:{_free_port()}"):
+    for address in ("notanaddress", f"tcp://127.0.0.1:{free_port()}"):
         proc = subprocess.run(
             [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps", "2",
              "--scheduler", address, "--out", str(tmp_path / "out")],
@@ -229,10 +229,10 @@ def _alive(pids: set[int]) -> set[int]:
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
     out = tmp_path / "sweep"
-    proc = _start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env={**ENV, "TRACKJAM_FAKE_SLEEP": "1"})
+    proc = start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env={**ENV, "TRACKJAM_FAKE_SLEEP": "1"})
     workers: set[int] = set()
     try:
-        _wait_for_files(out / "trials", 1, proc, limit_s=120)
+        wait_for_files(out / "trials", 1, proc, limit_s=120)
         workers = _children(proc.pid)
         assert len(workers) >= 2  # the pool's two workers (and multiprocessing's helper)
         os.kill(proc.pid, sig)
@@ -246,7 +246,7 @@ def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
     finally:
         for p in _alive(workers):
             os.kill(p, signal.SIGKILL)
-        _kill(proc)
+        kill(proc)
     # whatever was written is whole, and the sweep resumes to the uninterrupted result
     kept = list((out / "trials").glob("c*.parquet"))
     assert all(pq.read_table(p).num_rows == 1 for p in kept)
