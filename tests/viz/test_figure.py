@@ -6,16 +6,22 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 from fake_run import AGENT_COLUMNS, STEP_COLUMNS, fake_run
+from matplotlib.figure import Figure
 
+from trackjam.config import load_scenario
 from trackjam.radio.antenna import AntennaModel
 from trackjam.viz.figure import (
+    _panel_powers,
+    _panel_trajectories,
     agent_table,
     interference_per_step,
     level_labels,
     occluded_steps,
+    path_box,
     plot_run,
     to_db,
 )
+from trackjam.viz.replay import replay_figure
 
 
 @pytest.fixture(scope="module")
@@ -43,11 +49,91 @@ def quiet_run():
     return steps, agents, scenario
 
 
-def test_fake_run_has_every_log_column(run):
+class _Reads(dict):
+    """A log that remembers which columns were read."""
+
+    def __init__(self, columns):
+        super().__init__(columns)
+        self.read: set[str] = set()
+
+    def __getitem__(self, key):
+        self.read.add(key)
+        return super().__getitem__(key)
+
+    def __contains__(self, key):
+        self.read.add(key)
+        return super().__contains__(key)
+
+
+@pytest.fixture(scope="module")
+def real_run():
+    """A real run of the simulation, as short and cheap as it gets, with an occlusion."""
+    from trackjam.simulation.loop import simulate
+
+    s = load_scenario("paper-fig3", ["steps=4", "filter.particles=300", "filter.birth_particles=60",
+                                     "control.samples=50", "control.iterations=2", "target.occlusions=[[2, 2]]"])
+    r = simulate(s)
+    return r.steps, r.agents, s
+
+
+def test_the_figures_read_only_columns_a_real_run_logs_and_the_fake_run_copies_them(real_run, tmp_path):
+    steps, agents, scenario = real_run
+    steps, agents = _Reads(steps), _Reads(agents)
+    plot_run(steps, agents, scenario, tmp_path / "run.png")
+    replay_figure(steps, agents, scenario)
+    assert steps.read - {"mode"} <= set(STEP_COLUMNS) <= set(steps)
+    assert agents.read <= set(AGENT_COLUMNS) <= set(agents)
+    fake_steps, fake_agents, _ = fake_run()
+    for real, fake in ((steps, fake_steps), (agents, fake_agents)):
+        for col in fake:  # same kind of values: bool, integer or float
+            assert np.asarray(fake[col]).dtype.kind == np.asarray(dict.__getitem__(real, col)).dtype.kind, col
+
+
+def test_a_real_run_draws(real_run, tmp_path):
+    _assert_png_drawn(plot_run(*real_run, tmp_path / "run.png"))
+
+
+def test_panel_a_zooms_to_the_paths_inside_the_area(run):
     steps, agents, scenario = run
-    assert sorted(steps) == sorted(STEP_COLUMNS)
-    assert sorted(agents) == sorted(AGENT_COLUMNS)
-    assert len(agents["t"]) == scenario.steps * scenario.n_agents
+    T, N = scenario.steps, scenario.n_agents
+    ax = Figure().add_subplot(projection="3d")
+    _panel_trajectories(ax, steps, agents, scenario, T, N)
+    u = np.stack([agents[c] for c in "xyz"], axis=1)
+    lo, hi = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()]).T
+    assert np.all(lo >= 0) and np.all(hi <= 100)
+    assert np.all(u >= lo) and np.all(u <= hi)
+    assert (hi - lo).max() < 60  # the paths span ~25 m, not the 100 m box
+
+
+def test_path_box():
+    scenario = load_scenario("paper-fig3")
+    lo, hi = path_box(np.array([[10.0, 20.0, 30.0], [30.0, 25.0, 31.0], [np.nan] * 3]), scenario)
+    np.testing.assert_allclose(lo, [8.0, 18.0, 28.0])  # margin: max(10 % of 20 m, 2 m)
+    np.testing.assert_allclose(hi, [32.0, 27.0, 33.0])
+    lo, hi = path_box(np.array([[1.0, 50.0, 99.0]]), scenario)
+    np.testing.assert_allclose(lo, [0.0, 48.0, 97.0])  # clipped to the area
+    np.testing.assert_allclose(hi, [3.0, 52.0, 100.0])
+    lo, hi = path_box(np.full((2, 3), np.nan), scenario)
+    np.testing.assert_allclose(hi - lo, [100.0] * 3)  # nothing to show: the area
+
+
+def test_panel_d_leaves_a_gap_where_the_target_gets_no_power(run):
+    steps, agents, scenario = run
+    T, N = scenario.steps, scenario.n_agents
+    steps = dict(steps)
+    w = np.asarray(steps["target_received_w"], dtype=float).copy()
+    w[1] = 0.0
+    steps["target_received_w"] = w
+    ax = Figure().add_subplot()
+    _panel_powers(ax, steps, agents, scenario, np.arange(1.0, T + 1), T, N)
+    line = ax.lines[0].get_ydata()
+    assert np.isnan(line[w == 0]).all() and np.isfinite(line[w > 0]).all()
+    np.testing.assert_allclose(line[w > 0], 10 * np.log10(w[w > 0]))
+    floor = ax.get_yticks()[0]
+    assert ax.get_yticklabels()[0].get_text() == "0 W" and (line[w > 0] > floor).all()
+    marks = [c for c in ax.collections if c.get_label() == "no power at the target"]
+    assert len(marks) == 1 and marks[0].get_offsets()[:, 0].tolist() == (np.flatnonzero(w == 0) + 1.0).tolist()
+    assert 2.0 in marks[0].get_offsets()[:, 0]
 
 
 def test_recomputed_interference_matches_the_logged_total_and_jamming(run):

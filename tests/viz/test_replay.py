@@ -10,12 +10,12 @@ import subprocess
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
-from fake_run import fake_run
+from fake_run import fake_run, fake_scenario
 from test_figure import quiet_run
 
 from trackjam.radio.antenna import AntennaModel, inside_cone
 from trackjam.viz.figure import interference_per_step
-from trackjam.viz.replay import cone_mesh, replay_figure, write_replay
+from trackjam.viz.replay import MAX_FRAMES, TRAIL_FRAMES, cone_mesh, replay_figure, shown_steps, write_replay
 
 ERROR_HOOK = """<script>
 function __trackjamReport(msg) {
@@ -69,6 +69,9 @@ CHROMIUM_FLAGS = [
 ]
 
 
+CONE = '"type":"mesh3d","x":'  # a cone trace (the template names the type without data)
+
+
 @pytest.fixture(scope="module")
 def run():
     return fake_run()
@@ -110,15 +113,16 @@ def test_one_frame_per_step_with_title_and_cones(run):
     steps, agents, scenario = run
     fig = replay_figure(steps, agents, scenario)
     T, N = scenario.steps, scenario.n_agents
-    assert [f.name for f in fig.frames] == [str(t) for t in range(1, T + 1)]
+    assert [f["name"] for f in fig["frames"]] == [str(t) for t in range(1, T + 1)]
     power = agents["power_w"].reshape(T, N)
-    for k, frame in enumerate(fig.frames):
-        assert len(frame.data) == len(fig.data)
-        assert frame.layout.title.text.startswith(f"t = {k + 1} ")
-        cones = [tr for tr in frame.data if tr.type == "mesh3d"]
+    for k, frame in enumerate(fig["frames"]):
+        assert [tr["name"] for tr in frame["data"]] == [tr["name"] for tr in fig["data"]]
+        assert frame["layout"]["title"]["text"].startswith(f"t = {k + 1} ")
+        assert "steps shown" not in frame["layout"]["title"]["text"]
+        cones = [tr for tr in frame["data"] if tr["type"] == "mesh3d"]
         assert len(cones) == N
         for j, cone in enumerate(cones):
-            drawn = np.ptp(np.asarray(cone.x)) > 0
+            drawn = np.ptp(np.asarray(cone["x"], dtype=float)) > 0
             assert drawn == (power[k, j] > 0)  # an antenna that is off draws no cone
 
 
@@ -130,28 +134,74 @@ def test_jammed_agents_and_jamming_links_follow_the_logs(run):
     delta = AntennaModel.from_scenario(scenario).delta_w
     jammed = agents["jammed"].reshape(T, N)
     x = agents["x"].reshape(T, N)
-    for k, frame in enumerate(fig.frames):
-        by_name = {tr.name: tr for tr in frame.data}
+    for k, frame in enumerate(fig["frames"]):
+        by_name = {tr["name"]: tr for tr in frame["data"]}
         ring = by_name["jammed agent (red ring)"]
-        ring_x = np.asarray(ring.x, dtype=float)
-        assert sorted(ring_x[np.isfinite(ring_x)]) == sorted(x[k, jammed[k]])
-        links = np.asarray(by_name["jams (sender -> receiver)"].x, dtype=float)
+        ring_x = np.asarray(ring["x"], dtype=float)
+        assert np.allclose(sorted(ring_x[np.isfinite(ring_x)]), sorted(x[k, jammed[k]]), atol=1e-3)
+        links = np.asarray(by_name["jams (sender -> receiver)"]["x"], dtype=float)
         assert np.isfinite(links).sum() == 2 * (R[k] >= delta).sum()  # one segment per pair
 
 
-def test_quiet_run_replays(tmp_path):
+def test_quiet_run_replays_without_cones_or_target(tmp_path):
     steps, agents, scenario = quiet_run()
     fig = replay_figure(steps, agents, scenario)
-    assert len(fig.frames) == scenario.steps
-    assert write_replay(steps, agents, scenario, tmp_path / "replay.html").stat().st_size > 1_000_000
+    assert len(fig["frames"]) == scenario.steps
+    for frame in fig["frames"]:
+        for tr in frame["data"]:
+            if tr["type"] == "mesh3d":
+                assert np.ptp(np.asarray(tr["x"], dtype=float)) == 0
+            if tr["name"] in ("target (truth)", "target trail"):
+                assert all(v is None for v in tr["x"])
+    html = write_replay(steps, agents, scenario, tmp_path / "replay.html").read_text()
+    assert html.count(CONE) == scenario.n_agents * (scenario.steps + 1)
+
+
+def _figure_json(html: str) -> str:
+    return html[html.index("Plotly.newPlot"):]
 
 
 def test_replay_is_self_contained(replay_html, run):
     html = replay_html.read_text()
     assert not re.search(r"<script[^>]*\bsrc\s*=", html)  # plotly.js inlined: no CDN, no file
-    assert len(html) > 1_000_000 and "Plotly.newPlot" in html
-    figure_json = html[html.index("Plotly.newPlot"):]
-    assert figure_json.count('"name":"5"') == 1  # frames are named by step
+    head = html[: html.index("Plotly.newPlot")]
+    assert "plotly.js" in head and "window.Plotly" in head  # the library itself, before the plot
+    figure_json = _figure_json(html)
+    _, _, scenario = run
+    for t in range(1, scenario.steps + 1):  # one frame per step, named by it
+        assert figure_json.count(f'"name":"{t}"') == 1
+    assert figure_json.count(CONE) == scenario.n_agents * (scenario.steps + 1)
+
+
+def test_shown_steps_keep_the_first_and_last_and_spread_evenly():
+    assert shown_steps(30).tolist() == list(range(30))
+    k = shown_steps(1000)
+    assert len(k) == MAX_FRAMES and k[0] == 0 and k[-1] == 999
+    gaps = np.diff(k)
+    assert gaps.min() >= 3 and gaps.max() <= 4
+    assert shown_steps(5, max_frames=3).tolist() == [0, 2, 4]
+
+
+def test_a_long_run_is_decimated_and_says_so(tmp_path):
+    steps, agents, scenario = fake_run(fake_scenario(1000))
+    fig = replay_figure(steps, agents, scenario)
+    frames = fig["frames"]
+    assert len(frames) == MAX_FRAMES
+    assert frames[0]["name"] == "1" and frames[-1]["name"] == "1000"
+    assert all(f["layout"]["title"]["text"].endswith(f"{MAX_FRAMES} of 1000 steps shown") for f in frames)
+    assert "a frame every 3.3 steps" in fig["layout"]["annotations"][0]["text"]
+    truth = np.stack([steps[f"truth_{a}"] for a in "xyz"], axis=1)
+    for f in (frames[10], frames[-1]):  # the trail ends at the frame's step and is at most TRAIL_FRAMES long
+        trail = next(tr for tr in f["data"] if tr["name"] == "target trail")
+        assert len(trail["x"]) == min(TRAIL_FRAMES, frames.index(f) + 1)
+        k = int(f["name"]) - 1
+        if np.isfinite(truth[k, 0]):
+            assert trail["x"][-1] == pytest.approx(truth[k, 0], abs=1e-3)
+    html = write_replay(steps, agents, scenario, tmp_path / "replay.html").read_text()
+    # the page holds the 300 frames and no more: its data grows with the frames, not the steps
+    assert _figure_json(html).count(CONE) == scenario.n_agents * (MAX_FRAMES + 1)
+    short = write_replay(*fake_run(fake_scenario(300)), tmp_path / "short.html").read_text()
+    assert len(_figure_json(html)) < 1.5 * len(_figure_json(short))
 
 
 def test_replay_loads_in_chromium_without_errors(chromium_path, replay_html, run, tmp_path):

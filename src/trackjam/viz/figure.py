@@ -160,6 +160,22 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
     return path
 
 
+PATH_MARGIN = 0.1  # of the paths' extent, at least MIN_MARGIN_M, around the box of panel (a)
+MIN_MARGIN_M = 2.0
+
+
+def path_box(points: np.ndarray, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """Corners of the box panel (a) shows: the finite ``points`` with a margin, inside the area
+    (the whole area when there is nothing to show)."""
+    area_lo, area_hi = np.asarray(scenario.area.low, float), np.asarray(scenario.area.high, float)
+    p = points[np.isfinite(points).all(axis=1)]
+    if not len(p):
+        return area_lo, area_hi
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    margin = np.maximum(PATH_MARGIN * (hi - lo).max(), MIN_MARGIN_M)
+    return np.maximum(lo - margin, area_lo), np.minimum(hi + margin, area_hi)
+
+
 def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
     """(a) truth (black), fused estimate (cyan), agents u_t (coloured); o = start, ^ = end."""
     truth = steps_xyz(steps, "truth_")
@@ -177,15 +193,15 @@ def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
         ax.plot(*path.T, color=c, lw=1.6, label=f"agent {j + 1}")
         ax.scatter(*path[0], color=c, marker="o", s=60, edgecolor="k", depthshade=False)
         ax.scatter(*path[-1], color=c, marker="^", s=60, edgecolor="k", depthshade=False)
-    lo, hi = scenario.area.low, scenario.area.high
+    lo, hi = path_box(np.vstack([truth, est, u0, u.reshape(-1, 3)]), scenario)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    ax.set_box_aspect(np.subtract(hi, lo), zoom=1.2)
-    ax.set_title("(a) trajectories  (o start, ^ end, * target appears)")
+    ax.set_box_aspect(hi - lo, zoom=1.2)
+    ax.set_title("(a) trajectories, zoomed to the paths  (o start, ^ end, * target appears)")
     ax.legend(loc="upper left", fontsize=8)
 
 
@@ -233,7 +249,8 @@ def _panel_jamming(ax, agents, scenario, T, N) -> None:
 
 def _panel_powers(ax, steps, agents, scenario, t, T, N) -> None:
     """(d) power received at the target (Eq. 10, summed over agents) and interference at each
-    agent, in dBW; 0 W is drawn on the floor of the axis."""
+    agent, in dBW. 0 W has no decibel value: the target's line has a gap there, and a row of
+    markers under the axis' finite range ("0 W") says which steps had no power."""
     delta_db = scenario.antenna.interference_limit_db
     target_db = to_db(steps["target_received_w"])
     interf_db = to_db(agent_table(agents, "interference_w", T, N))
@@ -241,14 +258,16 @@ def _panel_powers(ax, steps, agents, scenario, t, T, N) -> None:
     floor = 10 * np.floor((finite.min() - 5) / 10)
     top = 10 * np.ceil((finite.max() + 3) / 10)
 
-    def floored(v):
-        return np.where(np.isneginf(v), floor, v)
-
-    ax.plot(t, floored(target_db), color=TARGET_POWER_COLOUR, lw=2, marker=".", label="at the target")
+    none = np.isneginf(target_db)
+    ax.plot(t, np.where(none, np.nan, target_db), color=TARGET_POWER_COLOUR, lw=2, marker=".", label="at the target")
+    if none.any():
+        ax.scatter(t[none], np.full(none.sum(), floor), color=TARGET_POWER_COLOUR, marker="v", s=45,
+                   zorder=4, label="no power at the target")  # above the agents' open circles
     offsets = (np.arange(N) - (N - 1) / 2) * 0.12
     for j in range(N):
-        ax.scatter(t + offsets[j], floored(interf_db[:, j]), facecolor="none",
-                   edgecolor=agent_colour(j), lw=1.4, s=36, label=f"interference at agent {j + 1}")
+        ax.scatter(t + offsets[j], np.where(np.isneginf(interf_db[:, j]), floor, interf_db[:, j]),
+                   facecolor="none", edgecolor=agent_colour(j), lw=1.4, s=36,
+                   label=f"interference at agent {j + 1}")
     ax.axhline(delta_db, color="k", ls="--", lw=1, label=f"delta = {delta_db:g} dBW")
     ax.set_ylim(floor - 2, top)
     ticks = [v for v in ax.get_yticks() if floor + 0.1 * (top - floor) < v <= top]

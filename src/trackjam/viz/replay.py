@@ -1,6 +1,9 @@
 """Interactive 3D replay of one run: a self-contained HTML page (plotly.js inlined, works offline).
 
-One plotly frame per step t, with a time slider and play/pause buttons. Each frame shows the
+One plotly frame per step t (at most ``MAX_FRAMES``: a longer run shows every k-th step, the
+first and the last, and says so in its title bar), with a time slider and play/pause buttons.
+Trails pass through the last ``TRAIL_FRAMES`` shown steps, so the page grows with the number
+of frames, not with the run's length. Each frame shows the
 agents u_t^j with their sensing cones (apex at the agent, axis toward the point the antenna
 aimed at, height h_a along the axis, full opening angle theta_a: MODEL.md, Antenna), the true
 target and the fused estimate with their trails, the agents that are jammed (red ring, the sum of
@@ -13,7 +16,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import plotly.graph_objects as go
 
 from trackjam.config import Scenario
 from trackjam.radio.antenna import AntennaModel, axis_of
@@ -31,6 +33,8 @@ from trackjam.viz.figure import (
 )
 
 CONE_SEGMENTS = 24
+MAX_FRAMES = 300  # the page and its memory stay bounded whatever the run's length
+TRAIL_FRAMES = 60  # a trail shows the last 60 shown steps (all of a run of up to 60 steps)
 JAM_COLOUR = "#e00000"
 
 
@@ -59,46 +63,64 @@ def cone_mesh(apex: np.ndarray, point: np.ndarray, height: float, half_angle: fl
     return vertices, np.vstack([side, base])
 
 
-def _cone_trace(j: int, apex, point, on: bool, ant: AntennaModel) -> go.Mesh3d:
+Trace = dict  # a plotly trace as plain data: building plotly objects for every frame costs minutes
+
+
+def _xyz(p: np.ndarray) -> dict[str, list]:
+    """x, y, z lists of an (n, 3) array, to the millimetre; NaN (a gap) as None."""
+    p = np.round(np.atleast_2d(np.asarray(p, dtype=float)), 3)
+    return {ax: [float(v) if np.isfinite(v) else None for v in p[:, i]] for i, ax in enumerate("xyz")}
+
+
+def _cone_trace(j: int, apex, point, on: bool, ant: AntennaModel) -> Trace:
     if on and np.all(np.isfinite(apex)) and np.all(np.isfinite(point)):
         v, f = cone_mesh(apex, point, ant.height, ant.half_angle)
     else:  # a degenerate cone at the agent: nothing to see, the trace stays in place
         v = np.repeat(np.nan_to_num(np.asarray(apex, dtype=float))[None, :], 3, axis=0)
         f = np.array([[0, 1, 2]])
-    return go.Mesh3d(
-        x=v[:, 0], y=v[:, 1], z=v[:, 2], i=f[:, 0], j=f[:, 1], k=f[:, 2],
+    return dict(
+        type="mesh3d", **_xyz(v), i=f[:, 0].tolist(), j=f[:, 1].tolist(), k=f[:, 2].tolist(),
         color=agent_colour(j), opacity=0.18, flatshading=True, hoverinfo="skip",
         name=f"cone {j + 1}", legendgroup=f"agent{j}", showlegend=False,
     )
 
 
-def _trail(xyz: np.ndarray, upto: int, name: str, colour: str, width: float, **kw) -> go.Scatter3d:
-    p = xyz[: upto + 1]
-    return go.Scatter3d(x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="lines", name=name,
-                        line=dict(color=colour, width=width), hoverinfo="skip", **kw)
+def _trail(p: np.ndarray, name: str, colour: str, width: float, **kw) -> Trace:
+    return dict(type="scatter3d", **_xyz(p), mode="lines", name=name,
+                line=dict(color=colour, width=width), hoverinfo="skip", **kw)
 
 
 def _point(p: np.ndarray, name: str, colour: str, symbol: str, size: float, text=None,
-           **kw) -> go.Scatter3d:
-    p = np.atleast_2d(np.asarray(p, dtype=float))
-    return go.Scatter3d(x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="markers+text" if text else "markers",
-                        name=name, text=text, textposition="top center",
-                        marker=dict(color=colour, symbol=symbol, size=size), **kw)
+           **kw) -> Trace:
+    return dict(type="scatter3d", **_xyz(p), mode="markers+text" if text else "markers",
+                name=name, text=text, textposition="top center",
+                marker=dict(color=colour, symbol=symbol, size=size), **kw)
 
 
-def _frame_data(k, steps, u, u_path, point, idx, power, jammed, R, ant, labels, delta):
-    """All traces of step t = k + 1, always in the same order (plotly frames update by index)."""
+def shown_steps(T: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
+    """0-based indices of the steps that get a frame: all of them up to ``max_frames``, else
+    ``max_frames`` evenly spread ones, the first and the last included."""
+    if T <= max_frames:
+        return np.arange(T)
+    return np.unique(np.round(np.linspace(0, T - 1, max_frames)).astype(int))
+
+
+def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant, labels, delta):
+    """All traces of frame ``f`` (step index ``shown[f]``), always in the same order (plotly
+    frames update by index). Trails pass through the last ``TRAIL_FRAMES`` shown steps."""
+    k = shown[f]
     N = u.shape[1]
-    truth = steps_xyz(steps, "truth_")
-    est = steps_xyz(steps, "est_")
+    path = shown[max(f + 1 - TRAIL_FRAMES, 0): f + 1]
     data = [
-        _trail(truth, k, "target trail", TRUTH_COLOUR, 4, showlegend=False),
+        _trail(truth[path], "target trail", TRUTH_COLOUR, 4, showlegend=False),
         _point(truth[k], "target (truth)", TRUTH_COLOUR, "diamond", 6),
-        _trail(est, k, "estimate trail", ESTIMATE_COLOUR, 3, showlegend=False),
+        _trail(est[path], "estimate trail", ESTIMATE_COLOUR, 3, showlegend=False),
         _point(est[k], "fused estimate", ESTIMATE_COLOUR, "circle-open", 7),
     ]
+    # u_path row 0 is the start, row k + 1 is step k
+    agent_path = np.concatenate([[0], path + 1]) if path[0] == 0 else path + 1
     for j in range(N):
-        data.append(_trail(u_path[:, j], k + 1, f"trail {j + 1}", agent_colour(j), 2,
+        data.append(_trail(u_path[agent_path, j], f"trail {j + 1}", agent_colour(j), 2,
                            legendgroup=f"agent{j}", showlegend=False, opacity=0.6))
     for j in range(N):
         label = f"{j + 1}: {labels[int(idx[k, j])]}"
@@ -117,9 +139,8 @@ def _frame_data(k, steps, u, u_path, point, idx, power, jammed, R, ant, labels, 
     for i, j in zip(*np.nonzero(R[k] >= delta)):
         seg += [u[k, j], u[k, i], [np.nan] * 3]
     seg = np.asarray(seg or [[np.nan] * 3], dtype=float).reshape(-1, 3)
-    data.append(go.Scatter3d(x=seg[:, 0], y=seg[:, 1], z=seg[:, 2], mode="lines",
-                             name="jams (sender -> receiver)",
-                             line=dict(color=JAM_COLOUR, width=3, dash="dash"), hoverinfo="skip"))
+    data.append(dict(type="scatter3d", **_xyz(seg), mode="lines", name="jams (sender -> receiver)",
+                     line=dict(color=JAM_COLOUR, width=3, dash="dash"), hoverinfo="skip"))
     return data
 
 
@@ -140,9 +161,13 @@ def _title(steps: Columns, k: int) -> str:
     return title
 
 
-def replay_figure(steps: Columns, agents: Columns, scenario: Scenario) -> go.Figure:
-    """The plotly figure of the replay: one frame per step, slider and play/pause buttons."""
+def replay_figure(steps: Columns, agents: Columns, scenario: Scenario, max_frames: int = MAX_FRAMES) -> dict:
+    """The plotly figure of the replay, as plain data (``data``, ``layout``, ``frames``): one
+    frame per shown step, slider and play/pause buttons."""
     T, N = run_shape(steps, agents)
+    shown = shown_steps(T, max_frames)
+    truth = steps_xyz(steps, "truth_")
+    est = steps_xyz(steps, "est_")
     ant = AntennaModel.from_scenario(scenario)
     u = agent_positions(agents, T, N)
     u_path = np.concatenate([agent_positions(agents, T, N, "prev_")[:1], u], axis=0)
@@ -153,13 +178,15 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario) -> go.Fig
     R = interference_per_step(agents, scenario)
     labels = level_labels(scenario)
 
+    every = "" if len(shown) == T else f"   |   {len(shown)} of {T} steps shown"
     frames = [
-        go.Frame(
+        dict(
             name=str(int(steps["t"][k])),
-            data=_frame_data(k, steps, u, u_path, point, idx, power, jammed, R, ant, labels, ant.delta_w),
-            layout=go.Layout(title_text=_title(steps, k)),
+            data=_frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant,
+                             labels, ant.delta_w),
+            layout=dict(title=dict(text=_title(steps, k) + every)),
         )
-        for k in range(T)
+        for f, k in enumerate(shown)
     ]
     lo, hi = np.asarray(scenario.area.low, dtype=float), np.asarray(scenario.area.high, dtype=float)
     span = hi - lo
@@ -168,20 +195,19 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario) -> go.Fig
                 fromcurrent=True, mode="immediate")
     pause = dict(frame=dict(duration=0, redraw=False), transition=dict(duration=0), mode="immediate")
     slider_steps = [
-        dict(method="animate", label=f.name,
-             args=[[f.name], dict(frame=dict(duration=0, redraw=True), transition=dict(duration=0),
+        dict(method="animate", label=f["name"],
+             args=[[f["name"]], dict(frame=dict(duration=0, redraw=True), transition=dict(duration=0),
                                   mode="immediate")])
         for f in frames
     ]
-    fig = go.Figure(data=frames[0].data, frames=frames)
-    fig.update_layout(
-        title=dict(text=_title(steps, 0), x=0.02, font=dict(size=14)),
+    layout = dict(
+        title=dict(text=frames[0]["layout"]["title"]["text"], x=0.02, font=dict(size=14)),
         scene=dict(
-            xaxis=dict(range=[lo[0], hi[0]], title="x [m]", autorange=False),
-            yaxis=dict(range=[lo[1], hi[1]], title="y [m]", autorange=False),
-            zaxis=dict(range=[lo[2], hi[2]], title="z [m]", autorange=False),
+            xaxis=dict(range=[float(lo[0]), float(hi[0])], title=dict(text="x [m]"), autorange=False),
+            yaxis=dict(range=[float(lo[1]), float(hi[1])], title=dict(text="y [m]"), autorange=False),
+            zaxis=dict(range=[float(lo[2]), float(hi[2])], title=dict(text="z [m]"), autorange=False),
             aspectmode="manual",
-            aspectratio=dict(x=ratio[0], y=ratio[1], z=ratio[2]),
+            aspectratio=dict(x=float(ratio[0]), y=float(ratio[1]), z=float(ratio[2])),
             camera=dict(eye=dict(x=1.5, y=-1.5, z=0.9)),
         ),
         uirevision="replay",
@@ -199,23 +225,31 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario) -> go.Fig
             steps=slider_steps,
         )],
         annotations=[dict(
-            text=(f"{scenario.name}: {N} agents, {T} steps, solver {scenario.control.solver}; "
+            text=(f"{scenario.name}: {N} agents, {T} steps"
+                  + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
+                  + f", solver {scenario.control.solver}; "
                   f"cones: h_a = {ant.height:g} m, theta_a = {scenario.antenna.opening_angle_deg:g} deg; "
                   f"delta = {scenario.antenna.interference_limit_db:g} dBW"),
             x=0.99, y=0.99, xref="paper", yref="paper", xanchor="right", showarrow=False,
             font=dict(size=11, color="#555"),
         )],
     )
-    return fig
+    import plotly.io as pio
+
+    layout["template"] = pio.templates[pio.templates.default].to_plotly_json()  # the look plotly's own figures get
+    return dict(data=frames[0]["data"], layout=layout, frames=frames)
 
 
 def write_replay(steps: Columns, agents: Columns, scenario: Scenario, path: str | Path) -> Path:
     """Write the replay of one run as a self-contained HTML file at ``path``; returns the path."""
     path = Path(path)
+    import plotly.io as pio
+
     fig = replay_figure(steps, agents, scenario)
-    html = fig.to_html(include_plotlyjs=True, include_mathjax=False, full_html=True, auto_play=False,
-                       config=dict(displaylogo=False, responsive=True), div_id="trackjam-replay",
-                       default_width="100%", default_height="100vh")
+    # validate=False: the traces are plain data, built to plotly's schema (the browser test loads them)
+    html = pio.to_html(fig, validate=False, include_plotlyjs=True, include_mathjax=False, full_html=True,
+                       auto_play=False, config=dict(displaylogo=False, responsive=True),
+                       div_id="trackjam-replay", default_width="100%", default_height="100vh")
     # the plot fills the window: no page margin, no scroll bar
     html = html.replace("<head>", "<head><style>html, body {margin: 0; height: 100%; overflow: hidden}</style>", 1)
     path.write_text(html, encoding="utf-8")
