@@ -1,23 +1,83 @@
-"""`trackjam bench` runs its groups and writes what it measured (no timing is asserted)."""
+"""`trackjam bench` prints a table for every figure it measured, nested ones included, and
+writes the same figures as JSON (no timing is asserted: only that the figures are sane)."""
 
 import json
 
+import pytest
 from typer.testing import CliRunner
 
+from trackjam.benchmarks.control import bench_budget, bench_exact, bench_scaling
+from trackjam.benchmarks.report import _print, cell, flatten
 from trackjam.cli import app
 
 
-def test_bench_filter_group_writes_json(tmp_path):
+def _timings(d: dict, path: str = ""):
+    """Every (where, {median_ms, p95_ms, ...}) statistics dict inside a benchmark result."""
+    if isinstance(d, dict):
+        if "median_ms" in d:
+            yield path, d
+        for k, v in d.items():
+            yield from _timings(v, f"{path}.{k}")
+    elif isinstance(d, list):
+        for i, v in enumerate(d):
+            yield from _timings(v, f"{path}[{i}]")
+
+
+def _sane(stats: dict) -> None:
+    assert 0 < stats["median_ms"] <= stats["p95_ms"], stats
+    if "max_ms" in stats:
+        assert stats["p95_ms"] <= stats["max_ms"], stats
+
+
+def test_flatten_and_cells():
+    assert flatten({"a": 1, "b": {"c": 2.0, "d": {"e": None}}, "f": [1]}) == {"a": 1, "b.c": 2.0, "b.d.e": None, "f": [1]}
+    assert [cell(v) for v in (1.23456, True, None, 7, "x")] == ["1.235", "yes", "-", "7", "x"]
+
+
+def test_the_report_prints_every_nested_timing_and_the_scaling_rows(capsys):
+    rows = [
+        {"name": "exact_11", **bench_exact(11, instances=5)},
+        {"name": "scaling", **bench_scaling(range(2, 4), instances=2, samples=50, iterations=2, max_agents=3)},
+        {"name": "exact_budget", **bench_budget((3,), 2, time_limit_s=0.5)},
+    ]
+    _print("control", rows)
+    out = capsys.readouterr().out
+    for row in rows:
+        for where, stats in _timings(row):
+            _sane(stats)
+    exact = flatten(rows[0])
+    for key in ("solve.median_ms", "solve.p95_ms", "build_and_solve.median_ms", "nodes_median"):
+        line = next(ln for ln in out.splitlines() if f" {key} " in ln)
+        assert cell(exact[key]) in line
+    assert "{" not in out and "}" not in out  # no raw dict anywhere
+    scaling_rows = rows[1]["rows"]
+    assert "scaling: rows" in out and "exact.p95_ms" in out and "grasp.median_ms" in out
+    for r in scaling_rows:
+        line = next(ln for ln in out.splitlines() if ln.strip(" │┃|").startswith(f"{r['agents']} "))
+        assert cell(r["exact"]["median_ms"]) in line and cell(r["exact_proven"]) in line
+
+
+def test_bench_filter_group_prints_and_writes_its_timings(tmp_path):
     out = tmp_path / "bench.json"
     r = CliRunner().invoke(app, ["bench", "--quick", "--only", "filter", "--json", str(out)])
     assert r.exit_code == 0, r.output
     data = json.loads(out.read_text())
+    assert set(data) == {"machine", "quick", "filter"} and data["quick"] is True
     row = data["filter"][0]
-    assert row["particles"] == 10000 and row["birth_particles"] == 2000 and row["measurements"] == 4
-    assert 0 < row["median_ms"] <= row["p95_ms"]
-    assert data["machine"]["cores"] >= 1
+    _sane(row)
+    assert row["repeats"] == 20 and data["machine"]["cores"] >= 1
+    for key in ("median_ms", "p95_ms"):
+        line = next(ln for ln in r.output.splitlines() if f" {key} " in ln)
+        assert cell(row[key]) in line
 
 
 def test_unknown_bench_group_exits_2():
     r = CliRunner().invoke(app, ["bench", "--only", "everything"])
     assert r.exit_code == 2
+
+
+@pytest.mark.parametrize("where, words", [("folder", "is a folder"), ("missing/b.json", "is not an existing folder")])
+def test_a_bad_json_path_is_refused_before_any_benchmark(tmp_path, where, words):
+    (tmp_path / "folder").mkdir()
+    r = CliRunner().invoke(app, ["bench", "--quick", "--only", "filter", "--json", str(tmp_path / where)])
+    assert r.exit_code == 2 and words in r.output and "running" not in r.output

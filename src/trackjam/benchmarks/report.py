@@ -32,29 +32,66 @@ def _groups(quick: bool) -> dict:
     }
 
 
-def _print(group: str, rows: list[dict]) -> None:
-    from rich.console import Console
+def flatten(d: dict, prefix: str = "") -> dict:
+    """Nested dicts as one level, keys joined by dots (``{"solve": {"median_ms": 1}}`` ->
+    ``{"solve.median_ms": 1}``); lists are kept as they are."""
+    out = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def cell(v) -> str:
+    """A value as the tables show it: 4 significant digits, yes/no, "-" for nothing."""
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _tables(group: str, rows: list[dict]) -> list:
+    """One two-column table per benchmark (every scalar it measured, nested ones flattened),
+    and one table per list of records in it (a column per key any record has)."""
     from rich.table import Table
 
-    console = Console(width=140)
-    console.rule(group)
+    tables = []
     for row in rows:
-        table = Table(title=str(row.get("name", group)), title_justify="left")
+        flat = flatten(row)
+        name = str(flat.pop("name", group))
+        table = Table(title=name, title_justify="left")
         table.add_column("figure")
         table.add_column("value", justify="right")
-        for k, v in row.items():
-            if k == "name" or isinstance(v, (list, dict)):
-                continue
-            table.add_row(k, f"{v:.4g}" if isinstance(v, float) else str(v))
+        for k, v in flat.items():
+            if not isinstance(v, list):
+                table.add_row(k, cell(v))
+        tables.append(table)
+        for k, v in flat.items():
+            if isinstance(v, list) and v and all(isinstance(r, dict) for r in v):
+                records = [flatten(r) for r in v]
+                columns = list(dict.fromkeys(c for r in records for c in r))
+                sub = Table(title=f"{name}: {k}", title_justify="left")
+                for c in columns:
+                    sub.add_column(c, justify="right")
+                for r in records:
+                    sub.add_row(*[cell(r.get(c)) for c in columns])
+                tables.append(sub)
+    return tables
+
+
+def _print(group: str, rows: list[dict]) -> None:
+    from rich.console import Console
+
+    console = Console(width=160)
+    console.rule(group)
+    for table in _tables(group, rows):
         console.print(table)
-        for k, v in row.items():
-            if isinstance(v, list) and v and isinstance(v[0], dict):
-                sub = Table(title=f"{group}: {k}", title_justify="left")
-                for col in v[0]:
-                    sub.add_column(str(col), justify="right")
-                for r in v:
-                    sub.add_row(*[f"{x:.4g}" if isinstance(x, float) else str(x) for x in r.values()])
-                console.print(sub)
 
 
 def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list[str] | None = None) -> dict:
@@ -65,6 +102,12 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
     unknown = [g for g in chosen if g not in groups]
     if unknown:
         raise ConfigError(f"--only {unknown[0]}: unknown benchmark group (choose from {', '.join(groups)})")
+    if json_out is not None:  # checked before minutes of benchmarks, not after
+        json_out = Path(json_out)
+        if json_out.is_dir():
+            raise ConfigError(f"--json {json_out}: is a folder, not a file")
+        if not json_out.absolute().parent.is_dir():
+            raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not an existing folder")
     results = {"machine": machine(), "quick": quick}
     print(f"machine: {results['machine']}", flush=True)
     for g in chosen:
@@ -73,5 +116,7 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
         results[g] = rows
         _print(g, rows)
     if json_out is not None:
-        Path(json_out).write_text(json.dumps(results, indent=2) + "\n")
+        from trackjam.files import atomic_write
+
+        atomic_write(json_out, lambda tmp: tmp.write_text(json.dumps(results, indent=2) + "\n"))
     return results
