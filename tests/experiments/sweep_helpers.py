@@ -85,6 +85,15 @@ def failing_trial(scenario: Scenario) -> dict:
     return fake_trial(scenario)
 
 
+def holding_trial(scenario: Scenario) -> dict:
+    """A trial of an experiment with metrics of its own: shares of steps held, on a false
+    track and missed (they sum to 1), plus the wall times every trial reports."""
+    rng = np.random.default_rng(scenario.seed)
+    held, false, missed = rng.dirichlet([4.0, 1.0, 2.0])
+    return {"held_share": float(held), "false_share": float(false), "missed_share": float(missed),
+            "step_s_mean": 0.01, "solve_s_mean": 0.001}
+
+
 SWEEP = dict(trials=2, steps=3, seed=7, progress="none", trial=fake_trial)  # 2 configurations x 2 trials
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from trackjam.experiments.engine import run_experiment
-from trackjam.experiments.summary import METRICS
+from trackjam.experiments.definitions import get_experiment
 
 OPTIONS = {
     "NAME": "table1 (Table I / Fig. 4), constraints (Fig. 5) or solvers (GRASP vs exact; ours)",
@@ -41,11 +41,12 @@ def experiment_command(
     table.add_column("#", justify="right")
     table.add_column("configuration")
     table.add_column("trials", justify="right")
-    for stem, _, _ in METRICS:
+    metrics = get_experiment(name).metrics
+    for stem, _, _ in metrics:
         table.add_column(stem, justify="right")
     table.add_column("step [s]", justify="right")
     for row, timing in zip(result.summary, result.timing):
-        cells = [f"{row[f'{s}_mean']:.3g} ± {row[f'{s}_ci95']:.2g}" for s, _, _ in METRICS]
+        cells = [f"{row[f'{s}_mean']:.3g} ± {row[f'{s}_ci95']:.2g}" for s, _, _ in metrics]
         table.add_row(str(row["config"]), row["label"], str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
     Console(width=160).print(table)
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"

@@ -24,6 +24,7 @@ from trackjam.config import (
     validate_scenario,
 )
 from trackjam.errors import ConfigError
+from trackjam.experiments.summary import METRICS, Metric
 from trackjam.experiments.trials import TrialDraw, draw_trial, simulation_seed, trial_fields
 from trackjam.simulation.build import displacements as scenario_displacements
 
@@ -43,11 +44,49 @@ class Configuration:
 
 
 @dataclass(frozen=True)
+class Panel:
+    """One panel of an experiment's figure: a bar per configuration and series, with its 95 %
+    interval, clipped at ``floor`` (the metric's physical lower bound)."""
+
+    title: str
+    ylabel: str
+    series: tuple[tuple[str, str | None], ...]  # (metric stem, legend or None)
+    floor: float = 0.0
+
+
+FIG4_PANELS = (
+    Panel("(a) jamming incidents", "incidents per trial per agent", (("incidents", None),)),
+    Panel("(b) received power", "W", (("target_received_w", "target"), ("agent_received_w", "agents"))),
+    Panel("(c) transmit power", "W per agent per step", (("transmit_w", None),)),
+    Panel("(d) tracking error", "OSPA [m]", (("ospa", None),)),
+)
+FIG5_PANELS = (
+    Panel("(a) jamming incidents", "incidents per trial per agent", (("incidents", None),)),
+    Panel("(b) agent received power", "W", (("agent_received_w", None),)),
+    Panel("(c) target received power", "W", (("target_received_w", None),)),
+    Panel("(d) tracking error", "OSPA [m]", (("ospa", None),)),
+)
+
+
+@dataclass(frozen=True)
 class Experiment:
+    """A comparison of ``configurations`` on the same trials. It names what it summarises
+    (``metrics``: summary.csv's columns, read from each trial's record) and what its figure
+    shows (``panels``, over those metrics); both default to Fig. 4's."""
+
     name: str
     description: str
     configurations: tuple[Configuration, ...]
     figure: str  # file name of its figure in OUT
+    panels: tuple[Panel, ...] = FIG4_PANELS
+    metrics: tuple[Metric, ...] = METRICS
+    xlabel: str = ""  # below the figure; ticks are the configurations' labels unless it is set
+
+    def __post_init__(self) -> None:
+        stems = {m[0] for m in self.metrics}
+        unknown = [stem for p in self.panels for stem, _ in p.series if stem not in stems]
+        if unknown:
+            raise ValueError(f"experiment {self.name}: panels show {unknown}, which are not among its metrics")
 
     @property
     def swept_keys(self) -> set[str]:
@@ -67,6 +106,7 @@ def _table1() -> Experiment:
         "Table I / Fig. 4: 11 or 79 mobility controls x opening angle 60, 80, 100, 120 deg",
         tuple(configurations),
         "fig4.png",
+        xlabel="configuration (Table I): 1-4: 11 controls, 5-8: 79 controls; theta_a 60/80/100/120 deg",
     )
 
 
@@ -80,6 +120,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             Configuration(2, "constraints off", {"control.constraints": False}),
         ),
         "fig5.png",
+        panels=FIG5_PANELS,
     ),
     "solvers": Experiment(
         "solvers",

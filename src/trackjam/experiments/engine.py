@@ -32,7 +32,6 @@ from trackjam.experiments.definitions import (
 )
 from trackjam.experiments.progress import make_reporter
 from trackjam.experiments.summary import (
-    METRICS,
     TIMING,
     DamagedTrial,
     parse_trial_filename,
@@ -144,10 +143,17 @@ def _claim(out: Path, params: dict) -> None:
         raise ConfigError(f"--out {out}: cannot write there ({err.strerror or err})") from None
 
 
-def _read_back(folder: Path, name: str, seeds: Mapping[tuple[int, int], int]) -> tuple[dict, list[str]]:
+def record_keys(experiment: Experiment) -> tuple[str, ...]:
+    """The figures every trial record of ``experiment`` must hold: its metrics and the timings."""
+    return tuple(dict.fromkeys(k for _, k, _ in experiment.metrics + TIMING))
+
+
+def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, int], int]) -> tuple[dict, list[str]]:
     """The intact trial records in ``folder`` by (config, trial), and one line for each kind of
     file passed over: damaged trials (re-run) and files that are not this experiment's trials
     (left alone). Stale temporary files of interrupted writes are removed."""
+    name = experiment.name
+    keys = record_keys(experiment)
     records: dict[tuple[int, int], dict] = {}
     damaged, foreign = [], []
     for p in sorted(folder.iterdir()):
@@ -159,7 +165,7 @@ def _read_back(folder: Path, name: str, seeds: Mapping[tuple[int, int], int]) ->
             foreign.append(p.name)
             continue
         try:
-            record = read_trial(p)
+            record = read_trial(p, keys)
         except DamagedTrial:
             damaged.append(p.name)
             continue
@@ -237,7 +243,7 @@ def run_experiment(
     with open_executor(workers, scheduler) as (executor, window):
         _claim(out, params)
         folder = out / "trials"
-        found, notes = _read_back(folder, name, {key: s.seed for key, s in scenarios.items()})
+        found, notes = _read_back(folder, experiment, {key: s.seed for key, s in scenarios.items()})
         for line in notes:
             report.note(line)
         records = [found[key] for key in sorted(found)]
@@ -256,6 +262,9 @@ def run_experiment(
                 finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for f in finished:
                     record = f.result()
+                    missing = [k for k in record_keys(experiment) if k not in record]
+                    if missing:
+                        raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} summarises them)")
                     write_trial(folder, record)
                     records.append(record)
                     report.trial(record)
@@ -271,7 +280,7 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
             notes: list[str]) -> ExperimentResult:
     from trackjam.experiments.figures import write_figure
 
-    summary = table_rows(records, configurations, METRICS)
+    summary = table_rows(records, configurations, experiment.metrics)
     timing = table_rows(records, configurations, TIMING)
     write_table(out / "summary.csv", summary)
     write_table(out / "timing.csv", timing)
@@ -288,5 +297,5 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     params = read_parameters(meta)
     experiment = get_experiment(params["experiment"])
     scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
-    found, notes = _read_back(out / "trials", experiment.name, {key: s.seed for key, s in scenarios.items()})
+    found, notes = _read_back(out / "trials", experiment, {key: s.seed for key, s in scenarios.items()})
     return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)

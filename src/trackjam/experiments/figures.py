@@ -1,5 +1,9 @@
-"""Figures laid out like the paper's Fig. 4 (per configuration of Table I) and Fig. 5
-(constraints on/off): four panels of means with 95% confidence intervals, from summary.csv."""
+"""An experiment's figure: the panels its definition names (default: the paper's Fig. 4), one
+bar per configuration and series with its 95 % confidence interval, from summary.csv's rows.
+
+An interval is clipped at its panel's physical floor (no negative incidents, watts or metres):
+with few trials the t-interval is wide and would otherwise reach below zero.
+"""
 
 from __future__ import annotations
 
@@ -9,20 +13,6 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
-# panel title, y label, [(column stem, legend)]
-FIG4 = (
-    ("(a) jamming incidents", "incidents per trial per agent", [("incidents", None)]),
-    ("(b) received power", "W", [("target_received_w", "target"), ("agent_received_w", "agents")]),
-    ("(c) transmit power", "W per agent per step", [("transmit_w", None)]),
-    ("(d) tracking error", "OSPA [m]", [("ospa", None)]),
-)
-FIG5 = (
-    ("(a) jamming incidents", "incidents per trial per agent", [("incidents", None)]),
-    ("(b) agent received power", "W", [("agent_received_w", None)]),
-    ("(c) target received power", "W", [("target_received_w", None)]),
-    ("(d) tracking error", "OSPA [m]", [("ospa", None)]),
-)
-
 
 def _num(v: Any) -> float:
     if v is None or v == "":
@@ -30,37 +20,51 @@ def _num(v: Any) -> float:
     return float(v)
 
 
-def write_figure(experiment, rows: list[dict[str, Any]], path: Path) -> Path:
-    """Four panels, one bar (with its CI as an error bar) per configuration and series."""
-    panels = FIG5 if experiment.name == "constraints" else FIG4
-    fig = Figure(figsize=(10, 7))  # no pyplot: no global state, no GUI backend
-    axes = fig.subplots(2, 2)
+def error_bars(means: list[float], ci95: list[float], floor: float) -> list[list[float]]:
+    """[below, above] error-bar lengths: the interval's half-width, the part below cut at
+    ``floor`` (NaN intervals draw no bar)."""
+    below, above = [], []
+    for m, e in zip(means, ci95):
+        e = 0.0 if math.isnan(e) or math.isnan(m) else e
+        below.append(max(min(e, m - floor), 0.0) if not math.isnan(m) else 0.0)
+        above.append(e)
+    return [below, above]
+
+
+def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
+    """The figure of ``experiment`` (its ``panels``) over summary rows ``rows``."""
+    panels = experiment.panels
+    ncols = 2 if len(panels) > 1 else 1
+    nrows = math.ceil(len(panels) / ncols)
+    fig = Figure(figsize=(5 * ncols, 3.5 * nrows))  # no pyplot: no global state, no GUI backend
+    axes = list(fig.subplots(nrows, ncols, squeeze=False).flat)
     x = list(range(len(rows)))
-    if experiment.name == "table1":
-        ticks = [str(r["config"]) for r in rows]
-        xlabel = "configuration (Table I): 1-4: 11 controls, 5-8: 79 controls; theta_a 60/80/100/120 deg"
-    else:
-        ticks = [str(r["label"]) for r in rows]
-        xlabel = ""
-    for ax, (title, ylabel, series) in zip(axes.flat, panels):
-        width = 0.8 / len(series)
+    ticks = [str(r["config"]) if experiment.xlabel else str(r["label"]) for r in rows]
+    for ax, panel in zip(axes, panels):
+        width = 0.8 / len(panel.series)
         values = []
-        for i, (stem, legend) in enumerate(series):
+        for i, (stem, legend) in enumerate(panel.series):
             m = [_num(r[f"{stem}_mean"]) for r in rows]
-            e = [0.0 if math.isnan(_num(r[f"{stem}_ci95"])) else _num(r[f"{stem}_ci95"]) for r in rows]
-            offset = (i - (len(series) - 1) / 2) * width
-            ax.bar([v + offset for v in x], m, width, yerr=e, capsize=3, label=legend)
+            e = [_num(r[f"{stem}_ci95"]) for r in rows]
+            offset = (i - (len(panel.series) - 1) / 2) * width
+            ax.bar([v + offset for v in x], m, width, yerr=error_bars(m, e, panel.floor), capsize=3, label=legend)
             values += m
-        if len(series) > 1:
+        if len(panel.series) > 1:
             ax.legend()
             if all(v > 0 for v in values if not math.isnan(v)):
                 ax.set_yscale("log")
-        ax.set_title(title)
-        ax.set_ylabel(ylabel)
+        ax.set_title(panel.title)
+        ax.set_ylabel(panel.ylabel)
         ax.set_xticks(x, ticks)
+    for ax in axes[len(panels):]:  # an odd number of panels leaves a cell empty
+        ax.set_visible(False)
     fig.suptitle(f"{experiment.description} (mean and 95% CI over trials)", fontsize=10)
-    if xlabel:
-        fig.supxlabel(xlabel, fontsize=9)
+    if experiment.xlabel:
+        fig.supxlabel(experiment.xlabel, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    return fig
+
+
+def write_figure(experiment, rows: list[dict[str, Any]], path: Path) -> Path:
+    experiment_figure(experiment, rows).savefig(path, dpi=120)
     return path

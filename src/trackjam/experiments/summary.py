@@ -18,15 +18,15 @@ from scipy import stats
 
 from trackjam.files import atomic_write
 
-# (column stem in the tables, key of a trial record, meaning [unit], paper)
-METRICS: tuple[tuple[str, str, str], ...] = (
+Metric = tuple[str, str, str]  # (column stem in the tables, key of a trial record, meaning [unit], paper)
+METRICS: tuple[Metric, ...] = (
     ("incidents", "jamming_incidents_per_agent", "jamming incidents per trial per agent [steps], Fig. 4(a)/5(a)"),
     ("target_received_w", "target_received_w_mean", "received power at the target, sum over agents [W], Fig. 4(b)/5(c)"),
     ("agent_received_w", "agent_received_w_mean", "interference received per agent [W], Fig. 4(b)/5(b)"),
     ("transmit_w", "transmit_w_mean", "transmit power per agent and step [W], Fig. 4(c)"),
     ("ospa", "ospa_mean", "OSPA tracking error (p=2, c=10 m) [m], Fig. 4(d)/5(d)"),
 )
-TIMING: tuple[tuple[str, str, str], ...] = (
+TIMING: tuple[Metric, ...] = (
     ("step_s", "step_s_mean", "wall time per simulation step [s]"),
     ("solve_s", "solve_s_mean", "wall time of the control solver per step [s]"),
 )
@@ -43,15 +43,17 @@ def trial_filename(config: int, trial: int) -> str:
 
 
 def record_table(record: Mapping[str, Any]) -> pa.Table:
-    """One trial as a one-row table: scalars as columns, per-agent incidents as a list, and
-    each 1-D numeric per-step series ``name`` of the run as a list column ``step.name``."""
+    """One trial as a one-row table: every number of the record as a float column (those of
+    :data:`RECORD_KEYS` first, in order), per-agent incidents as a list, and each 1-D numeric
+    per-step series ``name`` of the run as a list column ``step.name``."""
     columns: dict[str, pa.Array] = {
         "experiment": pa.array([str(record["experiment"])]),
         "config": pa.array([int(record["config"])], pa.int64()),
         "trial": pa.array([int(record["trial"])], pa.int64()),
         "seed": pa.array([int(record["seed"])], pa.int64()),
     }
-    for key in RECORD_KEYS:
+    figures = [k for k, v in record.items() if k not in columns and isinstance(v, (int, float)) and not isinstance(v, bool)]
+    for key in sorted(figures, key=lambda k: (k not in RECORD_KEYS, RECORD_KEYS.index(k) if k in RECORD_KEYS else 0, k)):
         columns[key] = pa.array([float(record[key])], pa.float64())
     columns["jamming_incidents"] = pa.array([[int(v) for v in record.get("jamming_incidents", [])]], pa.list_(pa.int64()))
     for name, values in sorted((record.get("steps") or {}).items()):
@@ -74,14 +76,15 @@ class DamagedTrial(ValueError):
 _IDENTITY = (("experiment", str), ("config", int), ("trial", int), ("seed", int))
 
 
-def read_trial(path: Path) -> dict:
-    """The record in one trial file; :class:`DamagedTrial` if it is not a complete one."""
+def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
+    """The record in one trial file; :class:`DamagedTrial` if it is not a complete one (one
+    row, the identity columns and the figures ``keys``)."""
     try:
         table = pq.read_table(path)
     except (pa.ArrowException, OSError, ValueError) as err:
         raise DamagedTrial(f"{path.name}: {type(err).__name__}") from None
     missing = [k for k, _ in _IDENTITY if k not in table.column_names]
-    missing += [k for k in RECORD_KEYS if k not in table.column_names]
+    missing += [k for k in keys if k not in table.column_names]
     if table.num_rows != 1 or missing:
         raise DamagedTrial(f"{path.name}: {table.num_rows} rows, missing {missing}")
     record = table.to_pylist()[0]
@@ -131,7 +134,7 @@ def _fmt(v: Any) -> str:
 def table_rows(
     records: list[Mapping[str, Any]],
     configurations: list[Mapping[str, Any]],
-    metrics: tuple[tuple[str, str, str], ...],
+    metrics: tuple[Metric, ...],
 ) -> list[dict[str, Any]]:
     """One row per configuration (in order): its parameters, trials, and mean/ci95 of each
     metric over its trials (records are taken in trial order, whatever order they finished)."""

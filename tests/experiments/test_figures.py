@@ -1,0 +1,93 @@
+"""An experiment's figure: the panels its definition names, intervals clipped at the physical
+floor, and a new experiment that brings its own metrics and panels."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from sweep_helpers import SWEEP, holding_trial
+
+from trackjam.experiments import definitions
+from trackjam.experiments.definitions import FIG4_PANELS, FIG5_PANELS, Configuration, Experiment, Panel, get_experiment
+from trackjam.experiments.engine import run_experiment
+from trackjam.experiments.figures import error_bars, experiment_figure
+from trackjam.experiments.summary import METRICS, read_table
+
+
+def test_error_bars_stop_at_the_floor():
+    below, above = error_bars([1.0, 30.0, 2.0, math.nan], [25.0, 5.0, math.nan, 3.0], floor=0.0)
+    assert below == [1.0, 5.0, 0.0, 0.0] and above == [25.0, 5.0, 0.0, 0.0]
+    assert error_bars([3.0], [5.0], floor=2.0) == [[1.0], [5.0]]
+
+
+def _rows(experiment, means: float, ci: float) -> list[dict]:
+    rows = []
+    for c in experiment.configurations:
+        row = {"config": c.index, "label": c.label}
+        for stem, _, _ in experiment.metrics:
+            row[f"{stem}_mean"], row[f"{stem}_ci95"] = means, ci
+        rows.append(row)
+    return rows
+
+
+@pytest.mark.parametrize("name", ["table1", "constraints", "solvers"])
+def test_no_interval_is_drawn_below_zero_even_with_two_trials(name):
+    experiment = get_experiment(name)
+    fig = experiment_figure(experiment, _rows(experiment, means=1.0, ci=25.0))  # 2 trials: t = 12.7
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in axes] == [p.title for p in experiment.panels]
+    for ax in axes:
+        for container in ax.containers:
+            if hasattr(container, "lines"):  # the error bars of a bar series
+                segments = np.concatenate([lc.get_segments() for lc in container.lines[2]])
+                assert segments[:, :, 1].min() >= 0.0 and segments[:, :, 1].max() == pytest.approx(26.0)
+
+
+def test_the_paper_experiments_keep_the_papers_panels():
+    assert get_experiment("table1").panels == FIG4_PANELS and get_experiment("solvers").panels == FIG4_PANELS
+    assert get_experiment("constraints").panels == FIG5_PANELS
+
+
+HOLDING = Experiment(
+    "holding-demo",
+    "held, false-track and missed shares, GRASP against exact",
+    (Configuration(1, "grasp", {"control.solver": "grasp"}), Configuration(2, "exact", {"control.solver": "exact"})),
+    "holding.png",
+    panels=(
+        Panel("(a) held", "share of steps", (("held", None),)),
+        Panel("(b) false track", "share of steps", (("false_track", None),)),
+        Panel("(c) missed", "share of steps", (("missed", None),)),
+    ),
+    metrics=(
+        ("held", "held_share", "share of steps with the track held"),
+        ("false_track", "false_share", "share of steps on a false track"),
+        ("missed", "missed_share", "share of steps the target was missed"),
+    ),
+)
+
+
+def test_a_new_experiment_draws_its_own_panels_from_its_own_metrics(tmp_path, monkeypatch):
+    monkeypatch.setitem(definitions.EXPERIMENTS, HOLDING.name, HOLDING)
+    r = run_experiment(HOLDING.name, workers=1, out=tmp_path, **{**SWEEP, "trial": holding_trial})
+    rows = read_table(tmp_path / "summary.csv")
+    assert [k for k in rows[0] if k.endswith("_mean")] == ["held_mean", "false_track_mean", "missed_mean"]
+    for row in rows:  # shares of the same steps
+        assert sum(float(row[f"{s}_mean"]) for s in ("held", "false_track", "missed")) == pytest.approx(1.0, abs=1e-5)
+    assert (tmp_path / "holding.png").stat().st_size > 0 and r.files[-1].name == "holding.png"
+    fig = experiment_figure(HOLDING, r.summary)
+    visible = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in visible] == ["(a) held", "(b) false track", "(c) missed"]
+    heights = [p.get_height() for p in visible[0].patches]
+    assert heights == pytest.approx([row["held_mean"] for row in r.summary])
+
+
+def test_a_panel_must_show_metrics_the_experiment_has():
+    with pytest.raises(ValueError, match=r"panels show \['ospa'\]"):
+        Experiment("x", "x", (), "x.png", panels=(Panel("t", "y", (("ospa", None),)),), metrics=METRICS[:1])
+
+
+def test_a_trial_function_missing_a_metric_stops_the_sweep_with_its_name(tmp_path):
+    with pytest.raises(ValueError, match="returned no jamming_incidents_per_agent"):
+        run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "trial": holding_trial})
