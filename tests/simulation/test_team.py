@@ -11,7 +11,7 @@ from trackjam.control.solve import solve
 from trackjam.radio.antenna import received_power
 from trackjam.simulation.agent import Message
 from trackjam.simulation.loop import simulate
-from trackjam.simulation.team import Exchange, TeamSettings, _guarded
+from trackjam.simulation.team import Exchange, TeamSettings
 from trackjam.world.moves import displacement_set
 
 FAST = ["control.solver=exact", "steps=8", "filter.particles=500", "filter.birth_particles=100"]
@@ -116,7 +116,7 @@ def test_a_guarded_teammate_is_protected_by_the_exact_plan(seed):
     planned = aim + rng.normal(0, 8, (2, 3))
     guard = aim + rng.normal(0, 6, (1, 3))
     D = displacement_set([3.0], 4, 8)
-    problem = _guarded(build_problem(np.vstack([planned, guard]), aim, D, ant, s.area.low, s.area.high, 1, True), 2)
+    problem = build_problem(np.vstack([planned, guard]), aim, D, ant, s.area.low, s.area.high, 1, True).guarded(2)
     sol = solve(problem, "exact", [])
     best_value, _, _ = enumerate_optimum(problem)
     assert sol.objective == pytest.approx(best_value)

@@ -23,7 +23,7 @@ delivered, every agent holds the same information and the team acts as one.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -201,7 +201,7 @@ class Team:
             problem = build_problem(positions, aim, displacements, ant, low, high,
                                     min(plan.at_least, len(rows)), plan.constraints)
             if guards:
-                problem = _guarded(problem, len(rows))
+                problem = problem.guarded(len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
                                  [self.agents[j].plan_rng for j in members], plan.samples, plan.iterations,
                                  plan.neighbours, plan.threads, plan.time_limit_s)
@@ -254,12 +254,3 @@ class Team:
                 a.filter.reset_to(fused.existence, fused.mean, fused.cov)
         return report
 
-
-def _guarded(problem, n_planned: int):
-    """The problem with its rows past ``n_planned`` turned into guarded teammates: hover only,
-    no detection (they add nothing to Xi), still receivers of Eq. (13)."""
-    n_cand = problem.n_cand.copy()
-    n_cand[n_planned:] = 1
-    p_d = problem.p_d.copy()
-    p_d[n_planned:] = 0.0
-    return replace(problem, n_cand=n_cand, p_d=p_d)
