@@ -150,6 +150,21 @@ def _step_progress(total: int, label: str):
     return line, lambda: None
 
 
+def _warm_up(s) -> None:
+    """Compile the scenario's kernels before the timed run, saying so (numba is silent)."""
+    from trackjam.simulation.warmup import warm_up
+
+    message = "compiling kernels (first run only; later runs load them from the cache)"
+    if sys.stdout.isatty():
+        from rich.console import Console
+
+        with Console(stderr=True).status(message):
+            warm_up(s)
+    else:
+        print(message, flush=True)
+        warm_up(s)
+
+
 @app.command()
 @user_errors
 def run(
@@ -173,6 +188,7 @@ def run(
     from trackjam.simulation.loop import simulate
     from trackjam.simulation.output import write_run
 
+    _warm_up(s)
     cb, close = _step_progress(s.steps, s.name)
     try:
         result = simulate(s, progress=cb)
@@ -180,7 +196,7 @@ def run(
         close()
     files = write_run(result, out, figures=figures)
     m = result.summary
-    table = Table(title=f"{s.name}  seed {s.seed}  solver {s.control.solver}")
+    table = Table(title=escape(f"{s.name}  seed {s.seed}  solver {s.control.solver}"))
     table.add_column("metric")
     table.add_column("value", justify="right")
     add = lambda label, value: table.add_row(escape(label), value)  # noqa: E731

@@ -7,3 +7,8 @@ class TrackjamError(Exception):
 
 class ConfigError(TrackjamError, ValueError):
     """A scenario, an option or a file the user gave is not valid."""
+
+
+class OutputError(TrackjamError):
+    """A file of the results could not be written (a full disk, a lost mount); what was written
+    before is intact."""

@@ -21,6 +21,8 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     os.close(fd)
     try:
         write(Path(tmp))
+        # mkstemp makes 0600 files; the finished file gets the mode any new file of the user's gets
+        os.chmod(tmp, 0o666 & ~current_umask())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -31,3 +33,15 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
 def is_temporary(p: Path) -> bool:
     """A leftover of :func:`atomic_write` (an interrupted write)."""
     return p.name.startswith(".") and TEMP_MARK in p.name
+
+
+def is_temporary_of(p: Path, name: str) -> bool:
+    """A leftover of an interrupted :func:`atomic_write` to ``name`` in ``p``'s folder."""
+    return p.name.startswith(f".{name}.") and p.name.endswith(TEMP_MARK + Path(name).suffix)
+
+
+def current_umask() -> int:
+    """The process's umask (reading it means setting it: set it straight back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask

@@ -82,3 +82,96 @@ def test_unwritable_out_under_a_file_is_refused(tmp_path):
     f.write_text("x")
     with pytest.raises(ConfigError):
         check_out_dir(f / "sub" / "dir", load_scenario("paper-fig3"))
+
+
+@pytest.fixture(scope="module")
+def small_result():
+    from trackjam.simulation.loop import simulate
+
+    return simulate(load_scenario("paper-fig3", FAST))
+
+
+def test_files_get_the_umasks_mode_not_mkstemps(tmp_path, small_result):
+    import os
+
+    from trackjam.simulation.output import write_run
+
+    old = os.umask(0o027)
+    try:
+        files = write_run(small_result, tmp_path / "a", figures=False)
+    finally:
+        os.umask(old)
+    assert {f.stat().st_mode & 0o777 for f in files} == {0o640}
+    old = os.umask(0o002)
+    try:
+        files = write_run(small_result, tmp_path / "b", figures=False)
+    finally:
+        os.umask(old)
+    assert {f.stat().st_mode & 0o777 for f in files} == {0o664}
+
+
+def test_a_killed_writes_temporary_file_does_not_block_the_rerun_and_is_removed(tmp_path, small_result):
+    from trackjam.simulation.output import write_run
+
+    out = tmp_path / "run"
+    write_run(small_result, out, figures=False)
+    leftover = out / ".run.png.k3j9x_2a.tmp.png"  # what atomic_write leaves when SIGKILLed mid-figure
+    leftover.write_bytes(b"half a png")
+    check_out_dir(out, small_result.scenario)
+    write_run(small_result, out, figures=False)
+    assert not leftover.exists()
+    (out / ".notes.tmp.png").write_text("not ours")  # a hidden file of the user's is not ours to ignore
+    with pytest.raises(ConfigError, match="not empty"):
+        check_out_dir(out, small_result.scenario)
+
+
+def test_a_full_disk_is_one_line_and_loses_nothing_written_before(tmp_path, small_result, monkeypatch):
+    import errno
+
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.simulation import logs
+
+    out = tmp_path / "run"
+    from trackjam.simulation.output import write_run
+
+    write_run(small_result, out, figures=False)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    real = logs.write_parquet
+    calls = []
+
+    def full_disk(table, path):
+        calls.append(path)
+        if len(calls) == 2:  # agents.parquet, after scenario, summary and steps were rewritten
+            with open(path, "wb") as f:
+                f.write(b"partial")
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(table, path)
+
+    monkeypatch.setattr(logs, "write_parquet", full_disk)
+    r = CliRunner().invoke(cli.app, ["run", "paper-fig3", "--out", str(out), "--no-figures", *sets(FAST)])
+    assert r.exit_code == 2, r.output
+    lines = [l for l in r.output.splitlines() if l.startswith("trackjam: error")]
+    assert len(lines) == 1 and "agents.parquet: cannot be written (No space left on device)" in lines[0]
+    assert "Traceback" not in r.output
+    after = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(after) == set(before)  # no temporary left behind
+    # the file the disk refused and those after it keep their earlier content; those rewritten
+    # before it are whole files of the new run (its wall times differ)
+    assert after["agents.parquet"] == before["agents.parquet"]
+    assert after["measurements.parquet"] == before["measurements.parquet"]
+    for name in ("steps.parquet", "agents.parquet", "measurements.parquet"):
+        assert pq.read_table(out / name).num_rows > 0
+    assert json.loads(after["summary.json"])["seed"] == 1
+
+
+def test_markup_in_an_out_path_is_printed_literally_and_the_warm_up_is_announced(tmp_path):
+    out = tmp_path / "[/oops]" / "[bold]run"
+    r = trackjam("run", "paper-fig3", "--out", str(out), "--no-figures", *sets(FAST))
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr and (out / "steps.parquet").is_file()
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("compiling kernels (first run only")
+    assert lines[1] == "paper-fig3: step 1/4"
+    assert lines[-1] == f"wrote 5 files to {out}"

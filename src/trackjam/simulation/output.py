@@ -2,7 +2,10 @@
 
 The folder is checked before any work starts: a file, an unwritable place, or a non-empty
 folder that holds anything but an earlier run of the very same resolved scenario is refused,
-so nothing of the user's is overwritten. Each file is written to a temporary name and renamed.
+so nothing of the user's is overwritten. Each file is written to a temporary name and renamed;
+the hidden temporaries an interrupted write leaves behind (a SIGKILL) are ours, ignored by the
+check and removed by the next write. A write that fails (a full disk) is one line, and the files
+already there keep their earlier content.
 """
 
 from __future__ import annotations
@@ -13,8 +16,8 @@ from pathlib import Path
 from typing import Callable
 
 from trackjam.config import Scenario, scenario_to_yaml
-from trackjam.errors import ConfigError
-from trackjam.files import atomic_write
+from trackjam.errors import ConfigError, OutputError
+from trackjam.files import atomic_write, is_temporary_of
 
 RUN_FILES = (
     "scenario.yaml",
@@ -33,7 +36,7 @@ def check_out_dir(out: Path, scenario: Scenario) -> None:
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out}: is a file, not a folder")
     if out.is_dir():
-        entries = [p.name for p in out.iterdir()]
+        entries = [p.name for p in out.iterdir() if not _leftover(p)]
         if entries:
             previous = out / "scenario.yaml"
             same = previous.is_file() and previous.read_text() == scenario_to_yaml(scenario)
@@ -51,6 +54,10 @@ def check_out_dir(out: Path, scenario: Scenario) -> None:
         raise ConfigError(f"--out {out}: {parent} is not writable ({err.strerror})") from None
 
 
+def _leftover(p: Path) -> bool:
+    return p.is_file() and any(is_temporary_of(p, name) for name in RUN_FILES)
+
+
 def _existing_parent(p: Path) -> Path:
     p = p.absolute()
     while not p.exists():
@@ -66,11 +73,23 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
 
     out = Path(out)
     check_out_dir(out, result.scenario)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
+    for p in out.iterdir():
+        if _leftover(p):
+            p.unlink(missing_ok=True)
     written = []
 
     def put(name: str, write: Callable[[Path], None]) -> None:
-        atomic_write(out / name, write)
+        try:
+            atomic_write(out / name, write)
+        except OSError as err:
+            raise OutputError(
+                f"{out / name}: cannot be written ({err.strerror or err}); "
+                f"the {len(written)} files written before it, and any earlier {name}, are intact"
+            ) from None
         written.append(out / name)
 
     put("scenario.yaml", lambda p: p.write_text(scenario_to_yaml(result.scenario)))
