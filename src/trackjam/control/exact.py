@@ -18,7 +18,10 @@ the first optimum in the search order above (ties are exact floating-point ties)
 
 The objective is written for S weighted target positions (sum_s w_s Xi at sample s; S = 1 is
 Eq. (12) at x_bar). The bound of the pairs of an agent from rank r on takes, at every sample,
-the largest p_D among them (a suffix maximum), which for S = 1 is p_D at rank r itself.
+the largest p_D among them (a suffix maximum), which for S = 1 is p_D at rank r itself. With
+the other agents fixed (the placed ones at their p_D, the others at their bounds), Xi at a
+sample is A_s + B_s p_D of the agent being placed, so the bound of a pair costs S
+multiply-adds once A and B are known for its depth.
 
 The search is resumable: the compiled kernel runs a bounded number of nodes and returns to
 Python, which keeps the clock (``time_limit_s``) and lets Ctrl-C through between chunks. When
