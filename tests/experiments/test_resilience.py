@@ -253,3 +253,26 @@ def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
     r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trials": 4})
     fresh = run_experiment("constraints", workers=1, out=tmp_path / "fresh", **{**SWEEP, "trials": 4})
     assert r.notes == [] and r.ran == 8 - len(kept) and r.summary == fresh.summary
+
+
+def test_a_scheduler_without_workers_is_said_not_waited_on_in_silence(capsys):
+    from trackjam.experiments.backends import open_executor
+
+    address = f"tcp://127.0.0.1:{free_port()}"
+    scheduler = start(["-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+                       address.rsplit(":", 1)[1], "--no-dashboard"])
+    try:
+        t0 = time.monotonic()
+        while True:  # wait until it listens
+            try:
+                check_dask_scheduler(address, timeout_s=2)
+                break
+            except ConfigError:
+                assert time.monotonic() - t0 < 60, "the scheduler did not start"
+                time.sleep(0.3)
+        with open_executor(None, address):
+            pass
+    finally:
+        kill(scheduler)
+    err = capsys.readouterr().err
+    assert err == f"trackjam: the Dask scheduler at {address} has no workers yet; the trials wait for one\n"

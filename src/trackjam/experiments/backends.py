@@ -18,6 +18,7 @@ import re
 import signal
 import socket
 import struct
+import sys
 import threading
 import time
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
@@ -36,8 +37,6 @@ def one_numba_thread() -> None:
     """Trials run side by side: each worker gets one numba thread (before numba is imported
     when possible, else through ``numba.set_num_threads``)."""
     os.environ["NUMBA_NUM_THREADS"] = "1"
-    import sys
-
     numba = sys.modules.get("numba")
     if numba is not None:
         numba.set_num_threads(1)
@@ -209,6 +208,9 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise ConfigError(f"cannot reach the Dask scheduler at {address} within {CONNECT_TIMEOUT_S:g} s: {msg}") from None
     try:
+        if not client.scheduler_info().get("workers"):  # else the sweep would wait without a word
+            print(f"trackjam: the Dask scheduler at {address} has no workers yet; the trials wait for one",
+                  file=sys.stderr, flush=True)
         yield client.get_executor(), 1 << 30  # the scheduler balances the load: submit everything
     finally:
         client.close()
