@@ -120,7 +120,7 @@ def fake_run(scenario: Scenario | None = None, seed: int = 7) -> tuple[dict, dic
 
 
 def _ospa(x, x_hat, c: float) -> float:
-    """OSPA(p, c) between sets of at most one point (MODEL.md, Metrics)."""
+    """OSPA(p, c) between sets of at most one point (docs/model.md, Metrics)."""
     if x is None and x_hat is None:
         return 0.0
     if x is None or x_hat is None:

@@ -92,7 +92,7 @@ def _chromium(chromium, tmp_path, html, *args):
 
 
 def test_cone_mesh_is_the_sensing_cone():
-    """Apex at the agent, rim at h_a along the axis with radius h_a tan(theta_a/2) (MODEL.md)."""
+    """Apex at the agent, rim at h_a along the axis with radius h_a tan(theta_a/2) (docs/model.md)."""
     apex, point = np.array([10.0, 20.0, 30.0]), np.array([40.0, 0.0, 50.0])
     h, half = 40.0, np.deg2rad(40)
     v, f = cone_mesh(apex, point, h, half, segments=16)

@@ -2,7 +2,7 @@
 each (configuration, trial).
 
 - ``table1``: the 8 configurations of Table I (Fig. 4): 11 mobility controls (Delta_R = [3] m,
-  N_phi = 4, N_theta = 8; the 3 m is ours, MODEL.md) or 79 controls (Delta_R = [1, 3, 5] m,
+  N_phi = 4, N_theta = 8; the 3 m is ours, docs/model.md) or 79 controls (Delta_R = [1, 3, 5] m,
   N_phi = N_theta = 8), times theta_a in {60, 80, 100, 120} deg.
 - ``constraints``: Fig. 5, the interference constraints of Eq. (13) enabled and disabled.
 - ``solvers`` (beyond the paper): the paper's GRASP against the exact optimum of Eqs. (12)-(13).

@@ -2,7 +2,7 @@
 
 A trial (Section VI, second paragraph): the target is spawned uniformly in the surveillance
 area, the N pursuers uniformly in a ball of radius 20 m centred on it, and every antenna points
-at the ball's centre. MODEL.md fixes the rest:
+at the ball's centre. The model document (docs/model.md) fixes the rest:
 
 - the target's velocity is uniform in +-v_b per axis (v_b = ``filter.birth_speed``), the same
   law as the filter's uniform birth (ours; the paper does not give the initial velocity);

@@ -5,7 +5,7 @@ first and the last, and says so in its title bar), with a time slider and play/p
 Trails pass through the last ``TRAIL_FRAMES`` shown steps, so the page grows with the number
 of frames, not with the run's length. Each frame shows the
 agents u_t^j with their sensing cones (apex at the agent, axis toward the point the antenna
-aimed at, height h_a along the axis, full opening angle theta_a: MODEL.md, Antenna), the true
+aimed at, height h_a along the axis, full opening angle theta_a: docs/model.md, Antenna), the true
 target and the fused estimate with their trails, the agents that are jammed (red ring, the sum of
 the power received from the others >= delta) and a dashed red link from each sender j to a
 receiver i it jams by itself (R_ij >= delta). An antenna that is off draws no cone.
