@@ -1,4 +1,4 @@
-"""What the team does when nobody believes in the target (MODEL.md, Control; ours).
+"""What the team does when nobody believes in the target (docs/model.md, Control; ours).
 
 No planning aim exists (no agent has e_{t|t-1} > 0.5), so every agent hovers and keeps its last
 aim, and transmits at the highest level Eq. (13) allows. "Highest" for a team is made precise

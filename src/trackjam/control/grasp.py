@@ -1,4 +1,4 @@
-"""The paper's distributed GRASP (Section V-D), as MODEL.md reads it.
+"""The paper's distributed GRASP (Section V-D), as docs/model.md reads it.
 
 Each agent j, with its own random stream, runs n_I iterations of
 

@@ -3,7 +3,7 @@
 Every agent i may move to a *candidate* position u_i + Delta (Delta from the displacement set of
 Eq. (3), kept only when it stays inside the area; hover, control 0, is always candidate 0) and
 transmit at a level l from L. In planning every candidate's cone aims at the planning aim x_bar
-(MODEL.md, Pointing), so
+(docs/model.md, antenna pointing), so
 
 - ``p_d[i, c, l]`` is Eq. (9)'s p_D(x_bar, u_i^c, l) of agent i at candidate c and level l;
 - ``gain[i, j, ci, cj]`` is the path gain g of sender j's cone (apex at its candidate cj, aimed
