@@ -324,6 +324,14 @@ class Control(_Model):
         description="`exact`: wall-time budget of one step's search [s] (ours); when it runs out the best plan "
         "found is used and the solution reports its certified gap to the optimum",
     )
+    plan_over: Literal["point", "belief"] = Field(
+        "point",
+        description="what Eq. (12)'s Xi is evaluated at: `point` (the paper: x_bar) or `belief` (ours: Xi averaged over "
+        "a weighted sample of the predicted density, `control.belief_samples` particles from each believing agent)",
+    )
+    belief_samples: Integer(1, 256) = Field(
+        16, description="`plan_over: belief`: particles each agent draws from its predicted density and sends, in [1, 256]"
+    )
     fallback: Literal["hover", "search"] = Field(
         "hover",
         description="when no agent believes in the target: `hover` (docs/model.md: hover, keep the last aim, highest "

@@ -31,6 +31,7 @@ class PlanSettings:
     threads: int
     fallback: str  # "hover" | "search"
     time_limit_s: float | None = 1.0  # exact's budget per search [s]
+    belief_samples: int = 0  # control.plan_over: belief -> samples per agent; 0: plan at the point x_bar
 
 
 def planning_aim(predicted: Sequence) -> np.ndarray | None:
@@ -58,3 +59,19 @@ def search_point(coasted: Sequence[np.ndarray], predicted: Sequence, aims: np.nd
     if compact:
         return np.clip(np.mean(compact, axis=0), low, high)
     return np.mean(aims, axis=0)
+
+
+def belief_sample(X: np.ndarray, w: np.ndarray, k: int) -> np.ndarray:
+    """``k`` positions that represent the particles ``X`` (n, >= 3) with weights ``w``: the
+    particles at the weights' (i + 1/2)/k quantiles (deterministic systematic resampling, so
+    the sample needs no random draw of its own)."""
+    cdf = np.cumsum(w, dtype=float)
+    idx = np.searchsorted(cdf, (np.arange(k) + 0.5) / k * cdf[-1])
+    return np.array(X[np.minimum(idx, len(X) - 1), :3], dtype=float)
+
+
+def pooled_belief(samples: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The planning sample of Eq. (12)'s belief average: every agent's sample, each agent's
+    weight shared equally among its points (weights sum to 1)."""
+    weights = np.concatenate([np.full(len(x), 1.0 / (len(x) * len(samples))) for x in samples])
+    return np.vstack(samples), weights

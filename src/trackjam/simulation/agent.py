@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackjam.estimation.bernoulli import BernoulliFilter, Estimate
+from trackjam.control.planning import belief_sample
 from trackjam.estimation.fusion import CONFIRM
 from trackjam.world.motion import cv_coast
 
@@ -32,6 +33,7 @@ class Message:
     aim: np.ndarray | None = None
     coasted: np.ndarray | None = None
     prior_existence: float | None = None
+    belief: np.ndarray | None = None  # (S, 3) positions drawn from its predicted density (plan_over: belief)
     plan: object | None = None  # a trackjam.control.distributed.Proposal
 
 
@@ -82,11 +84,17 @@ class Agent:
             plan_rng=np.random.default_rng(plan_seed),
         )
 
-    def predict(self, t: int, accel_var: float) -> Message:
-        """Section V-A's prediction, announced with position, aim and the coasted lost track."""
+    def predict(self, t: int, accel_var: float, belief_samples: int = 0) -> Message:
+        """Section V-A's prediction, announced with position, aim, the coasted lost track and,
+        planning over the belief, a sample of the predicted particles."""
         coasted = self.coasted_track(accel_var)
-        return Message(self.index, "prediction", t, position=self.position.copy(), estimate=self.filter.predict(),
-                       aim=self.aim.copy(), coasted=None if coasted is None else coasted[0])
+        estimate = self.filter.predict()
+        belief = None
+        if belief_samples:
+            f = self.filter
+            belief = belief_sample(f.particles, np.exp(f.log_w - f.log_w.max()), belief_samples)
+        return Message(self.index, "prediction", t, position=self.position.copy(), estimate=estimate,
+                       aim=self.aim.copy(), coasted=None if coasted is None else coasted[0], belief=belief)
 
     def update(self, t: int, Z: np.ndarray, point: np.ndarray, level_w: float, prior_existence: float) -> Message:
         est = self.filter.update(Z, self.position, point, level_w)

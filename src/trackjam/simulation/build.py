@@ -113,7 +113,7 @@ def build(s: Scenario) -> Components:
             solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.samples,
             iterations=c.iterations, neighbours=c.neighbours,
             threads=c.threads or default_threads(s.n_agents), fallback=c.fallback,
-            time_limit_s=c.time_limit_s,
+            time_limit_s=c.time_limit_s, belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
         ),
         team=TeamSettings(
             existence_rule=s.fusion.existence, feedback=s.fusion.feedback,

@@ -97,7 +97,7 @@ class Simulation:
         t0 = time.perf_counter()
         self.t = t = self.t + 1
         truth.step(t)
-        team.predict(t)
+        team.predict(t, c.plan.belief_samples)
         decisions, solve_s = team.decide(c.displacements, c.antenna, c.low, c.high, c.plan, actions)
         prev = team.positions
         team.apply(decisions, c.displacements)

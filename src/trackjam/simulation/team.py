@@ -29,9 +29,9 @@ import numpy as np
 
 from trackjam.control.distributed import Proposal, adopt, own_searches
 from trackjam.control.fallback import fallback_levels
-from trackjam.control.planning import PlanSettings, planning_aim, search_point
+from trackjam.control.planning import PlanSettings, planning_aim, pooled_belief, search_point
 from trackjam.control.problem import build_problem
-from trackjam.estimation.fusion import FusedEstimate, fuse
+from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.agent import Agent, Message
 
@@ -124,11 +124,11 @@ class Team:
         t = self.t if t is None else t
         return [a.index for a in self.agents if not self.exchange.down(a.index, t)]
 
-    def predict(self, t: int) -> None:
+    def predict(self, t: int, belief_samples: int = 0) -> None:
         """Round 1: working agents predict (Section V-A) and announce."""
         self.t = t
         q = self.settings.accel_var
-        sent = [self.agents[j].predict(t, q) for j in self.working()]
+        sent = [self.agents[j].predict(t, q, belief_samples) for j in self.working()]
         inboxes = self.exchange.send(t, "prediction", sent)
         for j, box in enumerate(inboxes):
             for m in box:
@@ -198,8 +198,13 @@ class Team:
             heard = self.fresh(j0)
             aim = np.frombuffer(key[2])
             positions = np.array([m.position for m in heard] + [self.known[j0][k].position for k in guards])
+            samples = weights = None
+            if plan.belief_samples:
+                # tracking: the believers' predicted densities; searching: wherever the team's can be
+                sampled = [m.belief for m in heard if searching or m.estimate.existence > CONFIRM]
+                samples, weights = pooled_belief(sampled)
             problem = build_problem(positions, aim, displacements, ant, low, high,
-                                    min(plan.at_least, len(rows)), plan.constraints)
+                                    min(plan.at_least, len(rows)), plan.constraints, samples, weights)
             if guards:
                 problem = problem.guarded(len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
