@@ -1,4 +1,4 @@
-"""The admissible displacements of Eq. (3) as MODEL.md reads them."""
+"""The admissible displacements of Eq. (3) as the model document reads them."""
 
 import numpy as np
 

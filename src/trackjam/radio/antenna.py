@@ -73,7 +73,7 @@ def inside_cone(p, apex, aim, height: float, half_angle: float) -> np.ndarray:
     """Whether ``p`` lies in the right circular cone with apex ``apex`` pointing at ``aim``.
 
     Inside when ``0 <= s <= h_a`` and ``|p - apex - s*axis| <= s*tan(theta_a/2)`` with
-    ``s = (p - apex) . axis`` (MODEL.md, Antenna). The apex itself is inside.
+    ``s = (p - apex) . axis`` (docs/model.md, antenna). The apex itself is inside.
     """
     p = np.asarray(p, dtype=float)
     apex = np.asarray(apex, dtype=float)
@@ -114,7 +114,7 @@ def received_power(x, u, aim, level_w, ant: AntennaModel) -> np.ndarray:
 def interference_matrix(positions, aims, levels_w, ant: AntennaModel) -> np.ndarray:
     """``R[i, j]``: power agent ``i`` receives from agent ``j``'s cone (zero diagonal) [W].
 
-    Agent ``i`` is jammed when ``R[i].sum() >= delta`` (MODEL.md).
+    Agent ``i`` is jammed when ``R[i].sum() >= delta`` (docs/model.md).
     """
     u = np.asarray(positions, dtype=float)
     a = np.asarray(aims, dtype=float)

@@ -1,4 +1,4 @@
-"""The pursuers' admissible displacements, Eq. (3), read as MODEL.md fixes it.
+"""The pursuers' admissible displacements, Eq. (3), read as the model document (docs/model.md) fixes it.
 
 Every radial step r in Delta_R, inclination phi = l2 * 2pi/N_phi (l2 = 0..N_phi) and azimuth
 theta = l3 * 2pi/N_theta (l3 = 1..N_theta) gives r [sin phi cos theta, sin phi sin theta,
