@@ -164,9 +164,10 @@ def test_measurement_birth_places_particles_at_the_last_scan():
     f.predict()
     f.update(h(x, U)[None, :], U, x, ANT.l_max)
     f.predict()
-    XB = f._birth[0]
-    # born around the measurement, then moved one step by their own velocity (|v| <= 3 m/s)
-    assert np.median(np.linalg.norm(XB[:, :3] - x, axis=1)) < 6.0
+    XB = f._m_birth[0]
+    # born around the measurement, then moved one step by their own velocity
+    assert np.abs(XB[:, 3:]).max() <= s.filter.measurement_birth_speed
+    assert np.median(np.linalg.norm(XB[:, :3] - XB[:, 3:] - x, axis=1)) < 3.5  # 35 m away: 2.2 m per angle
 
 
 def test_reset_to_redraws_from_the_fused_gaussian():

@@ -275,9 +275,21 @@ class Filter(_Model):
     birth_particles: Integer(1, 10_000_000) = Field(
         2000, description="particles of the birth density per step, in [1, 1e7] (and the memory check)"
     )
-    birth: Literal["uniform", "measurement"] = Field("uniform", description="birth density b_t: `uniform` in the area (the paper) or `measurement` (ours: around the last scan's measurements)")
+    birth: Literal["uniform", "measurement", "mixed"] = Field(
+        "uniform",
+        description="birth density b_t: `uniform` in the area (the paper), `measurement` (ours: around the last scan's "
+        "measurements) or `mixed` (ours: filter.birth_mix of `measurement`, the rest `uniform`)",
+    )
     birth_speed: Real(ge=0, le=MAX_SPEED) = Field(
-        3.0, description=f"v_b: birth velocity uniform in +-v_b per axis [m/s], in [0, {MAX_SPEED:g}]"
+        3.0,
+        description=f"v_b: birth velocity of the uniform birth, uniform in +-v_b per axis [m/s], in [0, {MAX_SPEED:g}]",
+    )
+    birth_mix: Prob = Field(
+        0.5, description="`mixed` birth (ours): share of b_t that is measurement-driven, the rest uniform [1], in [0, 1]"
+    )
+    measurement_birth_speed: Real(ge=0, le=MAX_SPEED) = Field(
+        8.0,
+        description=f"measurement-driven birth (ours): velocity uniform in +-this per axis [m/s], in [0, {MAX_SPEED:g}]",
     )
     accel_var: AccelVar | None = Field(
         None, description=f"filter's Sigma_v scale [m^2/s^4], in [0, {MAX_ACCEL_VAR:g}]; null: the target's"

@@ -6,7 +6,7 @@ Prediction (printed in Section V-A):
     s_{t|t-1}(x) = q_{t|t-1}(x) + p_s e_{t-1} ∫ pi(x | x') s_{t-1}(x') dx' / e_{t|t-1},
     q_{t|t-1}(x) = p_b (1 - e_{t-1}) b_t(x) / e_{t|t-1}
 
-so the predicted particle set is the ``n`` survivors moved by Eq. (1) with weight
+so the predicted particle set is the survivors moved by Eq. (1) with weight
 ``p_s e_{t-1} / e_{t|t-1}`` in all, and ``n_b`` birth particles with ``p_b (1 - e_{t-1}) /
 e_{t|t-1}`` in all. Update:
 
@@ -19,19 +19,15 @@ with ``p_D = p_D(x, u_t, l_t)`` of Eq. (9) per particle and ``g_t = N(y; h(x, u_
 ``1 - q_t = sum_i w_i L_i``; the update runs in the log domain and an empty scan is a real
 update (every factor is ``1 - p_D``, so a miss lowers the existence).
 
-Birth density b_t (``filter.birth``):
+Birth density b_t (``filter.birth``, see :mod:`trackjam.estimation.birth`): ``uniform`` (the
+paper), ``measurement`` (ours: around the previous scan's measurements) or ``mixed`` (ours:
+``filter.birth_mix`` of the measurement-driven and the rest uniform).
 
-* ``uniform`` (the paper): position uniform in the area, velocity uniform in ±v_b per axis.
-  Few of 2000 particles uniform over 10^6 m^3 land near a measurement, so (ours) the birth
-  particles are drawn by importance sampling: a fraction ``proposal_fraction`` around the
-  *current* scan's measurements (h^{-1}(y) plus a Gaussian twice as wide as the measurement
-  noise mapped to Cartesian space, floor 0.5 m), the rest uniform in the area, and each is
-  weighted by ``b(x) / proposal(x)`` (the deterministic-mixture density). The birth density is
-  still exactly the paper's uniform b(x); only the Monte-Carlo error changes.
-  ``birth_proposal="plain"`` draws all birth particles from b(x) itself.
-* ``measurement`` (ours): b_t is a mixture of Gaussians around the previous scan's
-  measurements (h^{-1}(y) plus the measurement noise mapped to Cartesian space), velocity
-  uniform in ±v_b, moved one step by Eq. (1)'s mean; uniform when the previous scan was empty.
+How the particles are spent (ours; the densities are the printed ones): the uniform birth is
+importance-sampled around the current scan's measurements, and the part of s_t born at the last
+step (the *young* component, born at t-1 and seen once) is kept apart, as a weighted set with its
+mass, for one step: when the next scan comes in it is drawn again by the two-scan proposal, whose
+velocities join the two scans. The rest of s_t is resampled to ``n`` particles.
 
 The filter starts with ``e_0 = 0`` (nothing is known) and its particles drawn from the uniform
 birth density, so that ``reset_to`` or a later birth has something to work with.
@@ -46,21 +42,70 @@ import numpy as np
 from scipy.special import expit
 
 from trackjam.config import Scenario
+from trackjam.estimation.birth import (
+    YOUNG_FLOOR,
+    YOUNG_INFLATE,
+    Gaussians,
+    UniformBirth,
+    draw_measurement_birth,
+    draw_uniform_birth,
+    redraw_young,
+)
 from trackjam.estimation.kernels import (
     kernel_cv_predict,
-    kernel_reflect,
-    kernel_log_gaussian_mixture,
     kernel_logsumexp,
+    kernel_reflect,
     kernel_systematic_indices,
     kernel_update_factors,
     kernel_weighted_moments,
 )
 from trackjam.radio.antenna import AntennaModel, axis_of
-from trackjam.radio.measurement import clutter_density, h_inverse
+from trackjam.radio.measurement import clutter_density
+from trackjam.world.motion import cv_matrices
 
-DT = 1.0  # dT [s], MODEL.md
-PROPOSAL_INFLATE = 2.0  # importance proposal: width relative to the measurement noise (ours)
-PROPOSAL_FLOOR = 0.5  # importance proposal: smallest standard deviation per axis [m] (ours)
+DT = 1.0  # dT [s]
+PHI, _GAMMA = cv_matrices(DT)
+GG = _GAMMA @ _GAMMA.T  # Eq. (1)'s process noise is accel_var * Gamma Gamma^T
+# resampling (ours): the fewest slots the particles a scan supported get, a share of the
+# survivors' slots but at most a few birth counts
+RESERVE_SHARE = 0.4
+RESERVE_CAP = 3
+
+
+@dataclass(frozen=True)
+class Scan:
+    """What the update of one step needs from the radio: measurements ``Z`` (m, 3) taken from
+    ``u`` with the antenna's unit ``axis`` and ``p_d_scale = (l / l_max) p_D^max``."""
+
+    Z: np.ndarray
+    u: np.ndarray
+    axis: np.ndarray
+    p_d_scale: float
+
+    @classmethod
+    def of(cls, Z, u, aim, level_w: float, ant: AntennaModel) -> "Scan":
+        u = np.asarray(u, dtype=float)
+        return cls(np.asarray(Z, dtype=float).reshape(-1, 3), u, axis_of(u, np.asarray(aim, dtype=float)),
+                   max(float(level_w), 0.0) / ant.l_max * ant.p_d_max)
+
+    def log_factors(self, X: np.ndarray, ant: AntennaModel, noise_std, log_lambda_c: float) -> np.ndarray:
+        """log L_i of every particle (the bracket of the update)."""
+        _, log_L = kernel_update_factors(
+            np.ascontiguousarray(X), self.Z, self.u, self.axis, self.p_d_scale, ant.height, ant.tan_half, ant.r0,
+            ant.n_e, np.asarray(noise_std, dtype=float), float(log_lambda_c),
+        )
+        return log_L
+
+
+@dataclass(frozen=True)
+class Young:
+    """The component of s_{t-1} born at t-1: its particles at t-1 (posterior log-weights
+    normalised within it), its share ``mass`` of s_{t-1} and the scan that updated it."""
+
+    X: np.ndarray
+    log_w: np.ndarray
+    mass: float
+    scan: Scan
 
 
 @dataclass(frozen=True)
@@ -105,38 +150,12 @@ def bernoulli_update(e_pred, X, log_w, Z, u, aim, level_w, ant: AntennaModel, no
     log-weights (normalised), the log of ``1 - q_t = sum_i w_i L_i`` and the per-particle
     ``log L_i``.
     """
-    p_d_scale = max(float(level_w), 0.0) / ant.l_max * ant.p_d_max
-    axis = axis_of(np.asarray(u, dtype=float), np.asarray(aim, dtype=float))
-    _, log_L = kernel_update_factors(
-        X, Z, np.asarray(u, dtype=float), axis, p_d_scale, ant.height, ant.tan_half, ant.r0, ant.n_e,
-        np.asarray(noise_std, dtype=float), float(log_lambda_c),
-    )
+    log_L = Scan.of(Z, u, aim, level_w, ant).log_factors(X, ant, noise_std, log_lambda_c)
     log_joint = log_w + log_L
     log_A = float(kernel_logsumexp(log_joint))
     e = posterior_existence(e_pred, log_A)
     log_post = log_w if log_A == -np.inf else log_joint - log_A
     return e, log_post, log_A, log_L
-
-
-def measurement_covariances(Z: np.ndarray, u: np.ndarray, noise_std, inflate: float, floor: float):
-    """Cartesian Gaussians of the measurements: means h^{-1}(y, u) and covariances
-    ``inflate^2 J diag(sigma^2) J^T + floor^2 I``, J the Jacobian of h^{-1} at y."""
-    rho, az, inc = Z[:, 0], Z[:, 1], Z[:, 2]
-    si, ci, sa, ca = np.sin(inc), np.cos(inc), np.sin(az), np.cos(az)
-    J = np.empty((len(Z), 3, 3))
-    J[:, :, 0] = np.stack([si * ca, si * sa, ci], axis=-1)
-    J[:, :, 1] = np.stack([-rho * si * sa, rho * si * ca, np.zeros_like(rho)], axis=-1)
-    J[:, :, 2] = np.stack([rho * ci * ca, rho * ci * sa, -rho * si], axis=-1)
-    S = np.asarray(noise_std, dtype=float) ** 2
-    cov = inflate**2 * (J * S) @ J.transpose(0, 2, 1) + floor**2 * np.eye(3)
-    return h_inverse(Z, u), cov
-
-
-def log_gaussian_mixture(P: np.ndarray, mu: np.ndarray, chol: np.ndarray) -> np.ndarray:
-    """log of (1/k) sum_j N(p; mu_j, L_j L_j^T) at each row of ``P`` (n, 3)."""
-    log_det = np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
-    d = np.ascontiguousarray(P[:, None, :] - mu[None, :, :])
-    return kernel_log_gaussian_mixture(d, np.linalg.inv(chol), log_det)
 
 
 class BernoulliFilter:
@@ -149,7 +168,8 @@ class BernoulliFilter:
         *,
         existence: float = 0.0,
         birth_proposal: str = "importance",
-        proposal_fraction: float = 0.5,
+        proposal_fraction: float = 0.75,
+        two_scan: bool = True,
     ):
         if birth_proposal not in ("importance", "plain"):
             raise ValueError(f"birth_proposal must be 'importance' or 'plain', got {birth_proposal!r}")
@@ -162,7 +182,10 @@ class BernoulliFilter:
         self.n = int(f.particles)
         self.n_b = int(f.birth_particles)
         self.birth = f.birth
-        self.v_b = float(f.birth_speed)
+        # share of b_t that is measurement-driven: 0 for the paper's uniform birth
+        self.birth_mix = {"uniform": 0.0, "measurement": 1.0, "mixed": float(f.birth_mix)}[f.birth]
+        self.n_mb = int(round(self.birth_mix * self.n_b))
+        self.v_m = float(f.measurement_birth_speed)
         self.accel_var = scenario.filter_accel_var
         self.ant = AntennaModel.from_scenario(scenario)
         self.noise_std = np.asarray(scenario.sensor.noise_std, dtype=float)
@@ -170,79 +193,42 @@ class BernoulliFilter:
         # lambda_c = 0 would make g / (lambda_c p_c) infinite; a tiny floor keeps logs finite
         self.log_lambda_c = math.log(max(self.lambda_c * clutter_density(self.ant.max_range), 1e-300))
         self.walls = f.walls
-        self.low = np.asarray(scenario.area.low, dtype=float)
-        self.high = np.asarray(scenario.area.high, dtype=float)
-        self.log_volume = float(np.sum(np.log(self.high - self.low)))
+        self.b = UniformBirth(np.asarray(scenario.area.low, dtype=float), np.asarray(scenario.area.high, dtype=float),
+                              float(f.birth_speed))
         self.importance = birth_proposal == "importance"
         self.proposal_fraction = float(proposal_fraction)
+        self.two_scan = bool(two_scan) and self.importance and self.b.v_b > 0.0 and self.n_mb < self.n_b
+        # the two-scan proposal is efficient: it redraws the young component with half the
+        # uniform births' count, and the survivors keep the rest of the n particles
+        self.n_young = max((self.n_b - self.n_mb) // 2, 1)
 
         self.e = float(np.clip(existence, 0.0, 1.0))
-        self.X = self._uniform_states(self.n)
-        self.log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t
+        self.X = self.b.draw(self.rng, self.n)
+        self.log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
+        self._young: Young | None = None
         self._e_pred: float | None = None  # set by predict(), consumed by update()
         self._w_surv = 1.0
         self._w_birth = 0.0
-        self._birth: tuple[np.ndarray, np.ndarray] | None = None  # measurement birth drawn at predict
-        self._prev_scan: tuple[np.ndarray, np.ndarray] | None = None  # (mu, cov) of the last scan
+        self._m_birth: tuple[np.ndarray, np.ndarray] | None = None  # measurement-driven births drawn at predict
+        self._prev_G: Gaussians | None = None  # the last scan's Gaussians, for measurement-driven birth
+        self.weighed = 0  # particles weighed by the last update: survivors, young component and births
         mean, cov = weighted_moments(self.X, np.exp(self.log_w))
         self._last = Estimate(self.e, mean, cov)
 
-    # -- birth density b_t ------------------------------------------------------------------
-    def _uniform_states(self, k: int) -> np.ndarray:
-        """``k`` draws of b(x): position uniform in the area, velocity uniform in ±v_b."""
-        lo = np.concatenate([self.low, np.full(3, -self.v_b)])
-        span = np.concatenate([self.high - self.low, np.full(3, 2.0 * self.v_b)])
-        return lo + self.rng.random((k, 6)) * span
-
-    def _uniform_birth_moments(self) -> tuple[np.ndarray, np.ndarray]:
-        """Exact mean and covariance of the paper's uniform b(x)."""
-        mean = np.concatenate([(self.low + self.high) / 2, np.zeros(3)])
-        var = np.concatenate([(self.high - self.low) ** 2 / 12, np.full(3, self.v_b**2 / 3)])
-        return mean, np.diag(var)
-
     def draw_uniform_birth(self, Z: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Birth particles of the uniform b(x) and their normalised log-weights b / proposal.
+        """``n_b`` particles of the uniform b(x) and their normalised log-weights b / proposal."""
+        G = Gaussians.of_scan(Z, u, self.noise_std) if (self.importance and len(Z)) else None
+        return draw_uniform_birth(self.rng, self.b, G, self.n_b, self.proposal_fraction)
 
-        Importance proposal (ours), a deterministic mixture with fixed counts: ``n_u``
-        particles from b itself and ``n_p`` whose position is drawn from G, the mixture of the
-        current scan's Cartesian Gaussians (velocity from b). The proposal density is
-        ``(n_u / B) b(x) + (n_p / B) G(p) U(v)`` and the weight ``b(x) / proposal(x)``.
-        """
-        m = len(Z)
-        B = self.n_b
-        n_p = int(round(self.proposal_fraction * B)) if (self.importance and m > 0) else 0
-        XB = self._uniform_states(B)
-        if n_p == 0:
-            return XB, np.full(B, -math.log(B))
-        n_u = B - n_p
-        mu, cov = measurement_covariances(Z, u, self.noise_std, PROPOSAL_INFLATE, PROPOSAL_FLOOR)
-        chol = np.linalg.cholesky(cov)
-        comp = self.rng.integers(m, size=n_p)
-        xi = self.rng.standard_normal((n_p, 3))
-        XB[n_u:, :3] = mu[comp] + (chol[comp] @ xi[:, :, None])[:, :, 0]
-        P = XB[:, :3]
-        inside = np.all((P >= self.low) & (P <= self.high), axis=1)
-        # the velocity factor U(v) is common to b and to every proposal component: it cancels
-        log_b = np.where(inside, -self.log_volume, -np.inf)
-        log_q = np.logaddexp(
-            log_b + math.log(n_u / B) if n_u else np.full(B, -np.inf),
-            math.log(n_p / B) + log_gaussian_mixture(P, mu, chol),
-        )
-        log_iw = np.where(inside, log_b - log_q, -np.inf)
-        if not np.any(inside):
-            return self._uniform_states(B), np.full(B, -math.log(B))
-        return XB, log_iw - kernel_logsumexp(log_iw)
+    def _move(self, X: np.ndarray) -> None:
+        """Eq. (1) in place, x_t = Phi x_{t-1} + Gamma nu with nu ~ N(0, accel_var I3), then the walls."""
+        kernel_cv_predict(X, self.rng.standard_normal((len(X), 3)), DT, math.sqrt(self.accel_var))
+        if self.walls == "reflect":
+            kernel_reflect(X, self.b.low, self.b.high)
 
-    def _measurement_birth(self) -> tuple[np.ndarray, np.ndarray]:
-        """Birth particles of the measurement-driven b_t (ours), equally weighted."""
-        XB = self._uniform_states(self.n_b)
-        if self._prev_scan is not None:
-            mu, cov = self._prev_scan
-            chol = np.linalg.cholesky(cov)
-            comp = self.rng.integers(len(mu), size=self.n_b)
-            xi = self.rng.standard_normal((self.n_b, 3))
-            XB[:, :3] = mu[comp] + (chol[comp] @ xi[:, :, None])[:, :, 0] + DT * XB[:, 3:]
-        return XB, np.full(self.n_b, -math.log(self.n_b))
+    @property
+    def _young_mass(self) -> float:
+        return self._young.mass if self._young is not None else 0.0
 
     # -- the recursion ------------------------------------------------------------------------
     def predict(self) -> Estimate:
@@ -254,23 +240,42 @@ class BernoulliFilter:
             self._w_birth = self.p_b * (1.0 - e_prev) / e_pred
         else:  # no mass anywhere; keep the survivors as the (irrelevant) spatial density
             self._w_surv, self._w_birth = 1.0, 0.0
-        # Eq. (1): x_t = Phi x_{t-1} + Gamma nu, nu ~ N(0, accel_var I3)
-        kernel_cv_predict(self.X, self.rng.standard_normal((self.n, 3)), DT, math.sqrt(self.accel_var))
-        if self.walls == "reflect":
-            kernel_reflect(self.X, self.low, self.high)
-        X = self.X
+        self._move(self.X)
+        M = self._young_mass
+        parts = [(self._w_surv * (1.0 - M), *weighted_moments(self.X, np.exp(self.log_w)))]
+        if self._young is not None:
+            # the young particles move in update(), where most steps draw them again; their
+            # predicted moments are Eq. (1)'s linear map of their moments (walls aside)
+            m_y, C_y = weighted_moments(self._young.X, np.exp(self._young.log_w))
+            parts.append((self._w_surv * M, PHI @ m_y, PHI @ C_y @ PHI.T + self.accel_var * GG))
         self._e_pred = e_pred
-
-        m_s, C_s = weighted_moments(X, np.exp(self.log_w))
-        if self.birth == "measurement":
-            self._birth = self._measurement_birth()
-            m_b, C_b = weighted_moments(self._birth[0], np.exp(self._birth[1]))
-        else:
-            self._birth = None
-            m_b, C_b = self._uniform_birth_moments()
-        mean, cov = mixture_moments([(self._w_surv, m_s, C_s), (self._w_birth, m_b, C_b)])
+        self._m_birth = None
+        if self.n_mb:
+            self._m_birth = draw_measurement_birth(self.rng, self.b, self._prev_G, self.n_mb, self.v_m)
+            parts.append((self._w_birth * self.birth_mix, *weighted_moments(self._m_birth[0], np.exp(self._m_birth[1]))))
+        if self.n_mb < self.n_b:
+            parts.append((self._w_birth * (1.0 - self.birth_mix), *self.b.moments()))
+        mean, cov = mixture_moments(parts)
         self._last = Estimate(e_pred, mean, cov)
         return self._last
+
+    def _young_at_t(self, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
+        """The young component at t: its particles moved by predict(), or drawn again by the
+        two-scan proposal when both its scan and the current one hold measurements."""
+        young = self._young
+        if self.two_scan and len(young.scan.Z) and len(scan.Z):
+            G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
+            G_next = Gaussians.of_scan(scan.Z, scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
+            X0, log_w = redraw_young(
+                self.rng, self.b, G_prev, G_next, self.n_young, self.proposal_fraction, self.accel_var,
+                lambda X: young.scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c),
+            )
+            if np.any(np.isfinite(log_w)):
+                self._move(X0)
+                return X0, log_w
+        X = young.X.copy()
+        self._move(X)
+        return X, young.log_w
 
     def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float) -> Estimate:
         """Update of Section V-A with scan ``Z`` (m, 3) taken from ``u`` with the antenna aimed at
@@ -279,35 +284,55 @@ class BernoulliFilter:
         if self._e_pred is None:
             self.predict()
         e_pred = self._e_pred
-        Z = np.asarray(Z, dtype=float).reshape(-1, 3)
-        u = np.asarray(u, dtype=float)
-        if self._birth is not None:
-            XB, log_wB = self._birth
-        else:
-            XB, log_wB = self.draw_uniform_birth(Z, u)
-        X = np.vstack([self.X, XB])
+        scan = Scan.of(Z, u, aim, level_w, self.ant)
+        Z, u = scan.Z, scan.u
+        G_now = Gaussians.of_scan(Z, u, self.noise_std) if (self.importance and len(Z)) else None
+        M = self._young_mass
         with np.errstate(divide="ignore"):
-            log_w = np.concatenate(
-                [(math.log(self._w_surv) if self._w_surv > 0 else -np.inf) + self.log_w,
-                 (math.log(self._w_birth) if self._w_birth > 0 else -np.inf) + log_wB]
-            )
-        e, log_post, _, log_L = bernoulli_update(
-            e_pred, X, log_w, Z, u, aim, level_w, self.ant, self.noise_std, self.log_lambda_c
-        )
+            log_s, log_b = np.log(self._w_surv), np.log(self._w_birth)
+            blocks = [(self.X, log_s + np.log1p(-M) + self.log_w)]
+            if self._young is not None:
+                XY, log_wY = self._young_at_t(scan)
+                blocks.append((XY, log_s + np.log(M) + log_wY))
+            if self.n_mb:
+                blocks.append((self._m_birth[0], log_b + np.log(self.birth_mix) + self._m_birth[1]))
+            n_u = self.n_b - self.n_mb
+            if n_u:
+                XU, log_wU = draw_uniform_birth(self.rng, self.b, G_now, n_u, self.proposal_fraction)
+                blocks.append((XU, log_b + np.log1p(-self.birth_mix) + log_wU))
+        X = np.vstack([x for x, _ in blocks])
+        log_w = np.concatenate([lw for _, lw in blocks])
+        self.weighed = len(X)
+        log_L = scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+        log_joint = log_w + log_L
+        log_A = float(kernel_logsumexp(log_joint))
+        e = posterior_existence(e_pred, log_A)
+        log_post = log_w if log_A == -np.inf else log_joint - log_A
         w = np.exp(log_post)
         w /= w.sum()
         mean, cov = weighted_moments(X, w)
-        self.X, self.log_w = self._resample(X, w, log_L > 0.0)
+        # the uniform-born part becomes the young component, the rest is resampled to the
+        # particles left of n: the step keeps n + n_b particles in all
+        k = len(X) - n_u if self.two_scan else len(X)
+        W_pool = float(w[:k].sum())
+        if W_pool > 0.0:
+            n_pool = max(self.n - self.n_young, self.n // 2) if k < len(X) else self.n
+            self.X, self.log_w = self._resample(X[:k], w[:k] / W_pool, log_L[:k] > 0.0, n_pool)
+        self._young = None
+        if k < len(X):
+            log_mass = float(kernel_logsumexp(log_post[k:]))
+            if log_mass > -np.inf:
+                self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scan)
         self.e = e
         self._e_pred = None
-        self._birth = None
-        if self.birth == "measurement":
-            self._prev_scan = measurement_covariances(Z, u, self.noise_std, 1.0, PROPOSAL_FLOOR) if len(Z) else None
+        self._m_birth = None
+        if self.n_mb:
+            self._prev_G = Gaussians.of_scan(Z, u, self.noise_std, inflate=1.0) if len(Z) else None
         self._last = Estimate(e, mean, cov)
         return self._last
 
-    def _resample(self, X: np.ndarray, w: np.ndarray, supported: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Systematic resampling of the ``n + n_b`` weighted particles back to ``n``.
+    def _resample(self, X: np.ndarray, w: np.ndarray, supported: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Systematic resampling of the weighted particles to ``n``.
 
         ``supported`` marks the particles the scan made more likely (L_i > 1: near a
         measurement). While a target is new, they carry well under 1% of the mass next to the
@@ -319,8 +344,7 @@ class BernoulliFilter:
         same density; once the target is tracked the supported part dominates and this is
         plain systematic resampling.
         """
-        n = self.n
-        reserve = min(self.n_b, n // 5)
+        reserve = min(RESERVE_CAP * self.n_b, int(RESERVE_SHARE * n))
         W_a = float(w[supported].sum())
         W_r = float(w[~supported].sum())
         if reserve == 0 or W_a <= 0.0 or W_r <= 0.0 or W_a * n >= reserve:
@@ -350,11 +374,13 @@ class BernoulliFilter:
             root = V * np.sqrt(np.clip(lam, 0.0, None))
             self.X = mean + self.rng.standard_normal((self.n, 6)) @ root.T
             self.log_w = np.full(self.n, -math.log(self.n))
+            self._young = None
             self._last = Estimate(self.e, mean.copy(), cov.copy())
         else:
             self._last = Estimate(self.e, self._last.mean, self._last.cov)
 
     @property
     def particles(self) -> np.ndarray:
-        """The particles of s_t after the last update, (n, 6); weights ``exp(log_w)``."""
+        """The particles of s_t after the last update outside its young component (n of them, or
+        n - n_b while a young component is kept); weights ``exp(log_w)``."""
         return self.X

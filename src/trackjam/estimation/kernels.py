@@ -64,7 +64,8 @@ def kernel_update_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, n
         rho_xy = math.sqrt(dx * dx + dy * dy)
         rho = math.sqrt(rho_xy * rho_xy + dz * dz)
         # S = sum_j exp(t_j - c_max); a measurement more than GATE standard deviations away
-        # in range adds less than exp(-GATE^2 / 2) ~ 1e-26 and is skipped
+        # (in range, then in all three coordinates) adds less than exp(-GATE^2 / 2) ~ 1e-26
+        # and is skipped
         S = 0.0
         have_angles = False
         az = 0.0
@@ -78,8 +79,13 @@ def kernel_update_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, n
                 inc = math.atan2(rho_xy, dz)
                 have_angles = True
             e1 = _wrap(Z[j, 1] - az) / s1
+            d2 = e0 * e0 + e1 * e1
+            if d2 > GATE * GATE:
+                continue
             e2 = _wrap(Z[j, 2] - inc) / s2
-            S += math.exp(-0.5 * (e0 * e0 + e1 * e1 + e2 * e2))
+            d2 += e2 * e2
+            if d2 < GATE * GATE:
+                S += math.exp(-0.5 * d2)
         if linear:
             L = miss + pd * K * S
             log_L[i] = math.log(L) if L > 0.0 else -np.inf
@@ -201,3 +207,83 @@ def kernel_reflect(X, low, high):
                 else:
                     break
             X[i, a] = min(max(X[i, a], low[a]), high[a])
+
+
+@njit(cache=True)
+def kernel_two_scan_velocity(P, V, mu, chol, Linv, log_det, sd, v_b, dt, blind, u_aim, u_pick, xi):
+    """The velocity part of the two-scan proposal (estimation/birth.py ``redraw_young``), in place.
+
+    ``P`` (k, 3) positions at t-1, ``V`` (k, 3) velocities already drawn from U(±v_b) (kept for
+    the blind draws, overwritten for the aimed ones); scan t's Gaussians have means ``mu``
+    (m, 3) and, as velocity proposals, Cholesky factors ``chol`` (m, 3, 3), their inverses
+    ``Linv``, ``log_det[j] = log det chol_j`` and per-axis standard deviations ``sd`` (m, 3).
+    Measurement j is reachable from p when every axis of (mu_j - p) / dt lies within
+    ``v_b + 3 sd_j``. With ``u_aim[i] >= blind`` and some measurement reachable, particle i takes
+    the ``floor(u_pick[i] r_i)``-th reachable one and ``v = (mu_j - p) / dt + chol_j xi[i]``.
+    Returns ``log q_v(v | p)`` of the whole mixture per particle (-inf where it is 0)."""
+    k = P.shape[0]
+    m = mu.shape[0]
+    log_U = -3.0 * math.log(2.0 * v_b)
+    c = -1.5 * _LOG_2PI
+    out = np.empty(k)
+    mean = np.empty(3)
+    for i in range(k):
+        r = 0
+        for j in range(m):
+            ok = True
+            for a in range(3):
+                if abs((mu[j, a] - P[i, a]) / dt) > v_b + 3.0 * sd[j, a]:
+                    ok = False
+            if ok:
+                r += 1
+        if r > 0 and u_aim[i] >= blind:
+            target = int(math.floor(u_pick[i] * r))
+            seen = 0
+            for j in range(m):
+                ok = True
+                for a in range(3):
+                    if abs((mu[j, a] - P[i, a]) / dt) > v_b + 3.0 * sd[j, a]:
+                        ok = False
+                if not ok:
+                    continue
+                if seen == target:
+                    for a in range(3):
+                        acc = (mu[j, a] - P[i, a]) / dt
+                        for b in range(a + 1):
+                            acc += chol[j, a, b] * xi[i, b]
+                        V[i, a] = acc
+                    break
+                seen += 1
+        inside = abs(V[i, 0]) <= v_b and abs(V[i, 1]) <= v_b and abs(V[i, 2]) <= v_b
+        log_blind = -np.inf
+        if inside:
+            log_blind = log_U + (math.log(blind) if r > 0 else 0.0)
+        if r == 0:
+            out[i] = log_blind
+            continue
+        mx = -np.inf
+        acc_s = 0.0
+        for j in range(m):
+            ok = True
+            for a in range(3):
+                mean[a] = (mu[j, a] - P[i, a]) / dt
+                if abs(mean[a]) > v_b + 3.0 * sd[j, a]:
+                    ok = False
+            if not ok:
+                continue
+            q = 0.0
+            for a in range(3):
+                y = 0.0
+                for b in range(a + 1):
+                    y += Linv[j, a, b] * (V[i, b] - mean[b])
+                q += y * y
+            t = c - log_det[j] - 0.5 * q
+            if t > mx:
+                acc_s = acc_s * math.exp(mx - t) + 1.0
+                mx = t
+            else:
+                acc_s += math.exp(t - mx)
+        log_aimed = math.log(1.0 - blind) + mx + math.log(acc_s) - math.log(r)
+        hi = max(log_blind, log_aimed)
+        out[i] = hi + math.log1p(math.exp(min(log_blind, log_aimed) - hi)) if hi > -np.inf else -np.inf
+    return out
