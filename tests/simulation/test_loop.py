@@ -118,7 +118,7 @@ def test_over_seeds_existence_follows_detectability(solver):
     """Over seeds: tracked on most detectable steps, and below 0.5 during the occlusion in most
     runs (re-acquiring after it depends on how far the target wandered while hidden)."""
     tracked, dropped = [], []
-    for seed in range(1, 7):
+    for seed in range(1, 11):
         r = simulate(load_scenario("paper-fig3", [f"control.solver={solver}"], seed=seed))
         e, t, det = r.steps["existence"], r.steps["t"], r.steps["target_detectable"]
         tracked.append(np.mean(e[det] > 0.5))
