@@ -322,3 +322,23 @@ def test_any_scan_any_level_gives_finite_estimates(kind, level, seed, existence,
     assert np.all(np.isfinite(f.particles))
     assert np.all(np.isfinite(f.log_w) | (f.log_w == -np.inf))
     assert np.exp(f.log_w).sum() == pytest.approx(1.0)
+
+
+def test_particles_hold_the_young_component_by_its_mass():
+    """Planning samples ``particles``: after a detection from nothing, the births the scan
+    supported (the young component) are part of it with their share of s_t."""
+    s = load_scenario("paper-fig3", filter__particles=2000, filter__birth_particles=400)
+    f = BernoulliFilter(s, np.random.default_rng(8))
+    x = np.array([40.0, 42.0, 38.0])
+    u = x - 5.0
+    for _ in range(2):
+        f.predict()
+        f.update(h(x, u)[None, :], u, x, ANT.l_max)
+    assert f._young is not None and 0.0 < f._young.mass < 1.0
+    for stage in ("posterior", "predicted"):
+        if stage == "predicted":
+            f.predict()
+        X, w = f.particles, np.exp(f.log_w)
+        assert len(X) == len(f._X) + len(f._young.X) and w.sum() == pytest.approx(1.0)
+        assert w[len(f._X):].sum() == pytest.approx(f._young.mass)
+        assert np.all((X[:, :3] >= 0) & (X[:, :3] <= 100))

@@ -203,8 +203,8 @@ class BernoulliFilter:
         self.n_young = max((self.n_b - self.n_mb) // 2, 1)
 
         self.e = float(np.clip(existence, 0.0, 1.0))
-        self.X = self.b.draw(self.rng, self.n)
-        self.log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
+        self._X = self.b.draw(self.rng, self.n)
+        self._log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
         self._young: Young | None = None
         self._e_pred: float | None = None  # set by predict(), consumed by update()
         self._w_surv = 1.0
@@ -212,7 +212,7 @@ class BernoulliFilter:
         self._m_birth: tuple[np.ndarray, np.ndarray] | None = None  # measurement-driven births drawn at predict
         self._prev_G: Gaussians | None = None  # the last scan's Gaussians, for measurement-driven birth
         self.weighed = 0  # particles weighed by the last update: survivors, young component and births
-        mean, cov = weighted_moments(self.X, np.exp(self.log_w))
+        mean, cov = weighted_moments(self._X, np.exp(self._log_w))
         self._last = Estimate(self.e, mean, cov)
 
     def draw_uniform_birth(self, Z: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -240,9 +240,9 @@ class BernoulliFilter:
             self._w_birth = self.p_b * (1.0 - e_prev) / e_pred
         else:  # no mass anywhere; keep the survivors as the (irrelevant) spatial density
             self._w_surv, self._w_birth = 1.0, 0.0
-        self._move(self.X)
+        self._move(self._X)
         M = self._young_mass
-        parts = [(self._w_surv * (1.0 - M), *weighted_moments(self.X, np.exp(self.log_w)))]
+        parts = [(self._w_surv * (1.0 - M), *weighted_moments(self._X, np.exp(self._log_w)))]
         if self._young is not None:
             # the young particles move in update(), where most steps draw them again; their
             # predicted moments are Eq. (1)'s linear map of their moments (walls aside)
@@ -290,7 +290,7 @@ class BernoulliFilter:
         M = self._young_mass
         with np.errstate(divide="ignore"):
             log_s, log_b = np.log(self._w_surv), np.log(self._w_birth)
-            blocks = [(self.X, log_s + np.log1p(-M) + self.log_w)]
+            blocks = [(self._X, log_s + np.log1p(-M) + self._log_w)]
             if self._young is not None:
                 XY, log_wY = self._young_at_t(scan)
                 blocks.append((XY, log_s + np.log(M) + log_wY))
@@ -317,7 +317,7 @@ class BernoulliFilter:
         W_pool = float(w[:k].sum())
         if W_pool > 0.0:
             n_pool = max(self.n - self.n_young, self.n // 2) if k < len(X) else self.n
-            self.X, self.log_w = self._resample(X[:k], w[:k] / W_pool, log_L[:k] > 0.0, n_pool)
+            self._X, self._log_w = self._resample(X[:k], w[:k] / W_pool, log_L[:k] > 0.0, n_pool)
         self._young = None
         if k < len(X):
             log_mass = float(kernel_logsumexp(log_post[k:]))
@@ -372,15 +372,36 @@ class BernoulliFilter:
             cov = np.asarray(cov, dtype=float)
             lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
             root = V * np.sqrt(np.clip(lam, 0.0, None))
-            self.X = mean + self.rng.standard_normal((self.n, 6)) @ root.T
-            self.log_w = np.full(self.n, -math.log(self.n))
+            self._X = mean + self.rng.standard_normal((self.n, 6)) @ root.T
+            self._log_w = np.full(self.n, -math.log(self.n))
             self._young = None
             self._last = Estimate(self.e, mean.copy(), cov.copy())
         else:
             self._last = Estimate(self.e, self._last.mean, self._last.cov)
 
+    def _survivors(self) -> tuple[np.ndarray, np.ndarray]:
+        """The surviving density's particles and normalised log-weights: the resampled part and,
+        while one is kept, the young component by its mass (after ``predict()`` the young
+        particles, which move in ``update()``, are shown moved by Eq. (1)'s mean and the walls)."""
+        if self._young is None:
+            return self._X, self._log_w
+        Y = self._young.X
+        if self._e_pred is not None:
+            Y = np.ascontiguousarray(Y @ PHI.T)
+            if self.walls == "reflect":
+                kernel_reflect(Y, self.b.low, self.b.high)
+        M = self._young.mass
+        with np.errstate(divide="ignore"):
+            log_w = np.concatenate([np.log1p(-M) + self._log_w, np.log(M) + self._young.log_w])
+        return np.vstack([self._X, Y]), log_w
+
     @property
     def particles(self) -> np.ndarray:
-        """The particles of s_t after the last update outside its young component (n of them, or
-        n - n_b while a young component is kept); weights ``exp(log_w)``."""
-        return self.X
+        """The particles of the surviving density s: s_t after ``update()``, the survivors moved
+        to t after ``predict()`` (births not included); weights ``exp(log_w)``."""
+        return self._survivors()[0]
+
+    @property
+    def log_w(self) -> np.ndarray:
+        """Normalised log-weights of :attr:`particles`."""
+        return self._survivors()[1]
