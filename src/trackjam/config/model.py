@@ -311,6 +311,11 @@ class Fusion(_Model):
         description="fused existence: `mean` of the agents' e (the paper) or `evidence` (ours: product of the "
         "agents' likelihood ratios on the common prior, as a centralised filter would)",
     )
+    search_reseed: Literal["always", "evidence"] = Field(
+        "always",
+        description="while searching (`control.fallback: search`), an agent's particles are redrawn from the coasted "
+        "track `always`, or (ours) not at a step its own scan raised its existence (e_t > e_{t|t-1}): `evidence`",
+    )
 
 
 class Control(_Model):
@@ -349,6 +354,17 @@ class Control(_Model):
         description="when no agent believes in the target: `hover` (docs/model.md: hover, keep the last aim, highest "
         "levels the constraints allow) or `search` (ours: plan moves and levels with the solver at the last track "
         "coasted by Eq. (1), whose Gaussian also reseeds the filters)",
+    )
+    lead: NonNegFloat = Field(
+        0.0,
+        description="lambda, aim lead [steps] (ours): plan and point at x_bar + lambda v_bar, v_bar the believers' mean "
+        "predicted velocity; 0: x_bar, the paper",
+    )
+    horizon: int = Field(
+        1,
+        ge=1,
+        description="H, intercept horizon [steps] (ours): aim where the target, coasted by Eq. (1), can first be "
+        "reached by the nearest agent within H steps; 1: x_bar, the paper",
     )
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from trackjam.config import Scenario
 from trackjam.control.planning import PlanSettings
+from trackjam.control.pursuit import AimSettings
 from trackjam.estimation.bernoulli import BernoulliFilter
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
@@ -120,6 +121,8 @@ def build(s: Scenario) -> Components:
             searching=c.fallback == "search", accel_var=s.filter_accel_var,
             loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps),
             failures=tuple((f.agent, f.step, f.mode) for f in s.comms.failures),
+            aim=AimSettings(lead=c.lead, horizon=c.horizon, reach=max(s.agents.radial_steps)),
+            search_reseed=s.fusion.search_reseed,
         ),
         target=target_params(s),
         make_filter=partial(BernoulliFilter, s),

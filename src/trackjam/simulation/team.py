@@ -29,7 +29,8 @@ import numpy as np
 
 from trackjam.control.distributed import Proposal, adopt, own_searches
 from trackjam.control.fallback import fallback_levels
-from trackjam.control.planning import PlanSettings, planning_aim, pooled_belief, search_point
+from trackjam.control.planning import PlanSettings, pooled_belief, search_point
+from trackjam.control.pursuit import AimSettings, pursuit_aim
 from trackjam.control.problem import build_problem
 from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse
 from trackjam.radio.antenna import AntennaModel
@@ -47,6 +48,8 @@ class TeamSettings:
     loss: float = 0.0  # comms.loss
     delay_steps: int = 0  # comms.delay_steps
     failures: tuple[tuple[int, int, str], ...] = ()  # comms.failures as (agent, step, mode)
+    aim: AimSettings = AimSettings()  # control.lead, control.horizon: the aim ahead of x_bar
+    search_reseed: str = "always"  # fusion.search_reseed: "always" | "evidence"
 
 
 @dataclass(frozen=True)
@@ -147,7 +150,8 @@ class Team:
         wall time of planning."""
         t0 = time.perf_counter()
         working = self.working()
-        x_bars = {j: planning_aim([m.estimate for m in self.fresh(j)]) for j in working}
+        x_bars = {j: pursuit_aim([m.estimate for m in self.fresh(j)], np.array([m.position for m in self.fresh(j)]),
+                                 self.settings.aim, low, high) for j in working}
         decisions: list[Decision | None] = [None] * len(self.agents)
         for j in range(len(self.agents)):
             if j not in working:
@@ -253,9 +257,17 @@ class Team:
             if not s.feedback:
                 continue
             if fused.mean is None and s.searching and a.last_track is not None:
+                if s.search_reseed == "evidence" and own_scan_raised(j, box):
+                    a.filter.reset_to(fused.existence)  # keep the particles its own scan supports
+                    continue
                 mean, cov = a.coasted_track(s.accel_var)
                 a.filter.reset_to(fused.existence, mean, cov)
             else:
                 a.filter.reset_to(fused.existence, fused.mean, fused.cov)
         return report
 
+
+def own_scan_raised(index: int, posteriors: list[Message]) -> bool:
+    """Agent ``index``'s own scan carried evidence for the target: e_t > e_{t|t-1}."""
+    own = next(m for m in posteriors if m.sender == index)
+    return own.estimate.existence > own.prior_existence

@@ -1,0 +1,100 @@
+"""Pursuit beyond the paper: an aim ahead of x_bar (lead, intercept) and a searching team that keeps
+the particles its own scans support."""
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.control.planning import planning_aim
+from trackjam.control.pursuit import AimSettings, aim_ahead, believers_state, intercept_steps, pursuit_aim
+from trackjam.errors import ConfigError
+from trackjam.estimation.bernoulli import Estimate
+from trackjam.simulation.agent import Message
+from trackjam.simulation.engine import Simulation
+
+LOW, HIGH = np.zeros(3), np.full(3, 100.0)
+
+
+def est(e, x, v):
+    return Estimate(e, np.array([*x, *v], dtype=float), np.eye(6))
+
+
+def test_the_papers_settings_give_planning_aim_bit_for_bit():
+    rng = np.random.default_rng(0)
+    predicted = [est(rng.uniform(), rng.uniform(0, 100, 3), rng.normal(0, 3, 3)) for _ in range(3)]
+    got = pursuit_aim(predicted, rng.uniform(0, 100, (3, 3)), AimSettings(), LOW, HIGH)
+    want = planning_aim(predicted)
+    assert (got is None and want is None) or np.array_equal(got, want)
+    assert pursuit_aim([est(0.4, [1, 2, 3], [1, 1, 1])], np.zeros((1, 3)), AimSettings(lead=0.5), LOW, HIGH) is None
+
+
+def test_lead_aims_at_x_bar_plus_lead_times_v_bar():
+    predicted = [est(0.9, [40, 50, 60], [2, 0, -1]), est(0.8, [42, 50, 58], [4, 2, -1]), est(0.2, [0, 0, 0], [9, 9, 9])]
+    near = np.array([[41.0, 50.0, 59.0]])  # within one step: the intercept adds nothing
+    aim = pursuit_aim(predicted, near, AimSettings(lead=0.5, horizon=4), LOW, HIGH)
+    x_bar, v_bar = np.array([41.0, 50.0, 59.0]), np.array([3.0, 1.0, -1.0])
+    assert np.allclose(aim, x_bar + 0.5 * v_bar)
+    assert np.allclose(believers_state(predicted)[0], planning_aim(predicted))
+
+
+@pytest.mark.parametrize("gap, speed, reach, horizon", [(12, 1, 5, 9), (12, 1, 5, 2), (3, 4, 5, 5), (30, 6, 5, 8)])
+def test_intercept_is_the_first_step_the_nearest_agent_can_be_where_the_target_will_be(gap, speed, reach, horizon):
+    x_bar, v_bar = np.array([gap, 0.0, 0.0]), np.array([speed, 0.0, 0.0])
+    u = np.array([[0.0, 0.0, 0.0], [-50.0, 0.0, 0.0]])
+    # the target flies straight away from the nearest agent: reachable at k when gap + (k-1) speed <= k reach
+    brute = next((k for k in range(1, horizon + 1) if gap + (k - 1) * speed <= k * reach), horizon)
+    assert intercept_steps(x_bar, v_bar, u, reach, horizon) == brute
+    aim = aim_ahead(x_bar, v_bar, u, AimSettings(horizon=horizon, reach=reach))
+    assert np.allclose(aim, x_bar + (brute - 1) * v_bar)
+
+
+def test_intercept_aims_closer_to_where_a_fleeing_target_will_be_and_stays_in_the_area():
+    x_bar, v_bar = np.array([50.0, 50.0, 50.0]), np.array([4.0, 0.0, 0.0])
+    u = np.array([[30.0, 50.0, 50.0]])
+    future = x_bar + 3 * v_bar
+    ahead = aim_ahead(x_bar, v_bar, u, AimSettings(horizon=6))
+    assert np.linalg.norm(ahead - future) < np.linalg.norm(x_bar - future)
+    edge = [est(0.9, [98, 50, 50], [5, 0, 0])]
+    assert pursuit_aim(edge, u, AimSettings(lead=2.0), LOW, HIGH)[0] == 100.0
+
+
+@pytest.mark.parametrize("override, key", [("control.horizon=0", "control.horizon"), ("control.lead=-1", "control.lead"),
+                                           ("fusion.search_reseed=never", "fusion.search_reseed")])
+def test_bad_pursuit_options_give_one_line_naming_the_key(override, key):
+    with pytest.raises(ConfigError) as info:
+        load_scenario("paper-fig3", [override])
+    assert key in str(info.value) and "\n" not in str(info.value)
+
+
+def _lost_team(reseed):
+    s = load_scenario("paper-fig3", ["steps=3", "filter.particles=400", "filter.birth_particles=50",
+                                     f"fusion.search_reseed={reseed}"])
+    team = Simulation(s).team
+    for a in team.agents:  # the team tracked a target at (50, 50, 50) two steps ago and lost it
+        a.last_track, a.last_track_cov, a.steps_since_track = np.array([50.0, 50, 50, 1, 0, 0]), np.eye(6), 2
+    team.predict(1)
+    before = [a.filter.particles.copy() for a in team.agents]
+    # agent 0's own scan raised its existence (0.2 -> 0.45); the others' lowered theirs
+    posteriors = [
+        Message(j, "posterior", 1, position=a.position, prior_existence=0.2,
+                estimate=Estimate(0.45 if j == 0 else 0.1, np.array([10.0, 10, 10, 0, 0, 0]), np.eye(6)))
+        for j, a in enumerate(team.agents)
+    ]
+    fused = team.fuse(posteriors)
+    assert fused.mean is None  # nobody confirms: the team is searching
+    return team, before
+
+
+def test_a_searching_agent_whose_scan_carried_evidence_keeps_its_particles():
+    team, before = _lost_team("evidence")
+    assert np.array_equal(team.agents[0].filter.particles, before[0])
+    coasted = np.array([53.0, 50, 50])  # last track coasted three steps, this one included
+    for a, X in zip(team.agents[1:], before[1:]):
+        assert not np.array_equal(a.filter.particles, X)
+        assert np.linalg.norm(a.filter.particles[:, :3].mean(axis=0) - coasted) < 1.0
+
+
+def test_always_reseeding_redraws_every_searching_agent_from_the_coasted_track():
+    team, before = _lost_team("always")
+    for a, X in zip(team.agents, before):
+        assert not np.array_equal(a.filter.particles, X)
