@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.control.planning import planning_aim
-from trackjam.control.pursuit import AimSettings, aim_ahead, believers_state, intercept_steps, pursuit_aim
+from trackjam.control.planning import planning_aim, search_point
+from trackjam.control.pursuit import (AimSettings, aim_ahead, believers_state, intercept_steps, pursuit_aim,
+                                     search_aim)
 from trackjam.errors import ConfigError
 from trackjam.estimation.bernoulli import Estimate
 from trackjam.simulation.agent import Message
@@ -56,6 +57,18 @@ def test_intercept_aims_closer_to_where_a_fleeing_target_will_be_and_stays_in_th
     assert np.linalg.norm(ahead - future) < np.linalg.norm(x_bar - future)
     edge = [est(0.9, [98, 50, 50], [5, 0, 0])]
     assert pursuit_aim(edge, u, AimSettings(lead=2.0), LOW, HIGH)[0] == 100.0
+
+
+def test_a_searching_team_moves_its_search_point_ahead_along_the_coasted_velocity():
+    coasted = [np.array([40.0, 50, 50, 2, 0, 0]), np.array([42.0, 50, 50, 4, 0, 0])]
+    predicted = [est(0.2, [0, 0, 0], [0, 0, 0])]
+    aims, u = np.full((2, 3), 10.0), np.array([[41.0, 52.0, 50.0], [0.0, 0.0, 0.0]])
+    point = search_point(coasted, predicted, aims, LOW, HIGH)
+    assert np.array_equal(search_aim(coasted, predicted, aims, u, AimSettings(), LOW, HIGH), point)
+    ahead = search_aim(coasted, predicted, aims, u, AimSettings(lead=0.5), LOW, HIGH)
+    assert np.allclose(ahead, point + 0.5 * np.array([3.0, 0, 0]))
+    never_tracked = search_aim([], predicted, aims, u, AimSettings(lead=0.5), LOW, HIGH)
+    assert np.array_equal(never_tracked, search_point([], predicted, aims, LOW, HIGH))
 
 
 @pytest.mark.parametrize("override, key", [("control.horizon=0", "control.horizon"), ("control.lead=-1", "control.lead"),

@@ -12,7 +12,8 @@ the aim along the believers' mean predicted velocity v_bar:
   control set, replanned every step.
 
 Both together aim at x_bar + (k - 1 + lambda) v_bar. lambda = 0 and H = 1 is the paper's x_bar,
-bit for bit.
+bit for bit. A searching team (``control.fallback: search``) moves its search point, the lost
+track coasted by Eq. (1), ahead along the coasted velocity the same way.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Sequence
 
 import numpy as np
 
-from trackjam.control.planning import planning_aim
+from trackjam.control.planning import planning_aim, search_point
 from trackjam.estimation.fusion import CONFIRM
 
 
@@ -81,3 +82,14 @@ def pursuit_aim(predicted: Sequence, positions: np.ndarray, settings: AimSetting
         return None
     x_bar, v_bar = state
     return np.clip(aim_ahead(x_bar, v_bar, positions, settings), low, high)
+
+
+def search_aim(coasted: Sequence[np.ndarray], predicted: Sequence, aims: np.ndarray, positions: np.ndarray,
+               settings: AimSettings, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """:func:`~trackjam.control.planning.search_point`, moved ahead along the mean coasted velocity
+    by :func:`aim_ahead` when the team searches for a lost track and the options ask for it."""
+    point = search_point(coasted, predicted, aims, low, high)
+    if settings.paper or not len(coasted):
+        return point
+    v = np.mean([c[3:6] for c in coasted], axis=0)
+    return np.clip(aim_ahead(point, v, positions, settings), low, high)

@@ -29,8 +29,8 @@ import numpy as np
 
 from trackjam.control.distributed import Proposal, adopt, own_searches
 from trackjam.control.fallback import fallback_levels
-from trackjam.control.planning import PlanSettings, pooled_belief, search_point
-from trackjam.control.pursuit import AimSettings, pursuit_aim
+from trackjam.control.planning import PlanSettings, pooled_belief
+from trackjam.control.pursuit import AimSettings, pursuit_aim, search_aim
 from trackjam.control.problem import build_problem
 from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse
 from trackjam.radio.antenna import AntennaModel
@@ -189,9 +189,9 @@ class Team:
                 problems[("hover", j)] = Proposal(j, rows, "hover", None, np.zeros(len(rows), dtype=np.int64),
                                                   np.asarray(levels, dtype=np.int64), np.nan)
                 continue
-            aim = x_bar if x_bar is not None else search_point(
+            aim = x_bar if x_bar is not None else search_aim(
                 [m.coasted for m in heard if m.coasted is not None], [m.estimate for m in heard],
-                np.array([m.aim for m in heard]), low, high)
+                np.array([m.aim for m in heard]), np.array([m.position for m in heard]), self.settings.aim, low, high)
             key = (rows, guards, aim.tobytes(), tuple(m.position.tobytes() for m in heard),
                    tuple(self.known[j][k].position.tobytes() for k in guards), x_bar is None)
             groups.setdefault(key, []).append(j)
