@@ -355,16 +355,15 @@ class Control(_Model):
         "levels the constraints allow) or `search` (ours: plan moves and levels with the solver at the last track "
         "coasted by Eq. (1), whose Gaussian also reseeds the filters)",
     )
-    lead: NonNegFloat = Field(
+    lead: Real(ge=0, le=10) = Field(
         0.0,
         description="lambda, aim lead [steps] (ours): plan and point at x_bar + lambda v_bar, v_bar the believers' mean "
-        "predicted velocity; 0: x_bar, the paper",
+        "predicted velocity, in [0, 10]; 0: x_bar, the paper",
     )
-    horizon: int = Field(
+    horizon: Integer(1, 100) = Field(
         1,
-        ge=1,
         description="H, intercept horizon [steps] (ours): aim where the target, coasted by Eq. (1), can first be "
-        "reached by the nearest agent within H steps; 1: x_bar, the paper",
+        "reached by the nearest agent within H steps, in 1..100; 1: x_bar, the paper",
     )
 
 
