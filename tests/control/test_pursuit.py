@@ -111,3 +111,25 @@ def test_always_reseeding_redraws_every_searching_agent_from_the_coasted_track()
     team, before = _lost_team("always")
     for a, X in zip(team.agents, before):
         assert not np.array_equal(a.filter.particles, X)
+
+
+def test_the_pursuit_preset_is_paper_fig3_with_aim_pointing_a_half_step_lead_and_the_exact_solver():
+    a = load_scenario("pursuit").model_dump(exclude={"name"})
+    b = load_scenario("paper-fig3").model_dump(exclude={"name"})
+    diff = {(sec, k): a[sec][k] for sec in a if isinstance(a[sec], dict) for k in a[sec] if a[sec][k] != b[sec][k]}
+    assert diff == {("antenna", "pointing"): "aim", ("control", "lead"): 0.5, ("control", "solver"): "exact"}
+
+
+
+def test_a_team_with_a_lead_plans_and_points_half_a_step_ahead_of_the_papers_x_bar():
+    fast = ["steps=3", "filter.particles=500", "filter.birth_particles=100", "control.solver=exact",
+            "antenna.pointing=aim"]
+    paper = Simulation(load_scenario("paper-fig3", fast))
+    ahead = Simulation(load_scenario("paper-fig3", fast + ["control.lead=0.5"]))
+    x_bar = paper.step().step["aim"]
+    rec = ahead.step()
+    v_bar = np.mean([m.estimate.mean[3:] for m in ahead.team.fresh(0) if m.estimate.existence > 0.5], axis=0)
+    assert np.linalg.norm(v_bar) > 0.0
+    assert np.allclose(rec.step["aim"], x_bar + 0.5 * v_bar)
+    assert np.allclose(rec.agents["point"], rec.step["aim"])  # pointing: aim steers every antenna there
+

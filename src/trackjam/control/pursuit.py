@@ -93,3 +93,4 @@ def search_aim(coasted: Sequence[np.ndarray], predicted: Sequence, aims: np.ndar
         return point
     v = np.mean([c[3:6] for c in coasted], axis=0)
     return np.clip(aim_ahead(point, v, positions, settings), low, high)
+
