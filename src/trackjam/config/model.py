@@ -39,6 +39,8 @@ def _number(v: Any) -> Any:
         raise ValueError(f"must be a number, got {type(v).__name__} {v!r}")
     if isinstance(v, float) and not math.isfinite(v):
         raise ValueError(f"must be a finite number, got {v}")
+    if isinstance(v, float):
+        return v + 0.0  # -0.0 passes ge=0 yet numpy reads its sign (a scale of -0.0 is "< 0")
     return v
 
 
