@@ -13,6 +13,7 @@ from trackjam.config import (
     validate_scenario,
 )
 from trackjam.errors import ConfigError
+from trackjam.simulation.build import antenna_model
 
 
 def test_paper_fig3_preset_holds_the_papers_settings():
@@ -161,7 +162,6 @@ def test_the_bounds_themselves_are_accepted():
 def test_displacement_bound_covers_eq3_and_the_table_estimate_bounds_the_problems_arrays():
     from trackjam.config.limits import candidates_bound, estimate
     from trackjam.control.problem import build_problem
-    from trackjam.radio.antenna import AntennaModel
     from trackjam.world.moves import displacement_set
 
     for radial in ([3.0], [1.0, 3.0, 5.0]):
@@ -173,7 +173,7 @@ def test_displacement_bound_covers_eq3_and_the_table_estimate_bounds_the_problem
     D = displacement_set(s.agents.radial_steps, s.agents.n_inclination, s.agents.n_azimuth)
     problem = build_problem(
         np.asarray(s.agents.initial, float), np.asarray(s.target.initial[:3], float), D,
-        AntennaModel.from_scenario(s), s.area.low, s.area.high, 2, True,
+        antenna_model(s), s.area.low, s.area.high, 2, True,
     )
     tables = problem.gain.nbytes + problem.p_d.nbytes
     estimated = estimate(s)["memory_tables"][0]

@@ -9,13 +9,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackjam.config import load_scenario
-from trackjam.estimation.bernoulli import BernoulliFilter, bernoulli_update, posterior_existence
-from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
+from trackjam.estimation.bernoulli import bernoulli_update, posterior_existence
+from trackjam.radio.antenna import axis_of, detection_probability
 from trackjam.radio.measurement import clutter_density, h, sample_scan, wrap_angle
 from trackjam.world.motion import cv_step
+from trackjam.simulation.build import antenna_model, make_filter
 
 S = load_scenario("paper-fig3")
-ANT = AntennaModel.from_scenario(S)
+ANT = antenna_model(S)
 SIGMA = np.asarray(S.sensor.noise_std)
 LAMBDA_PC = S.sensor.clutter_rate * clutter_density(ANT.max_range)
 U = np.array([10.0, 10.0, 10.0])
@@ -102,7 +103,7 @@ def test_switched_off_antenna_leaves_existence_on_its_prediction():
         e, w, log_A = run_update(0.3, Z, level_w=0.0)
         assert e == pytest.approx(0.3, rel=1e-14)
         np.testing.assert_allclose(w, W_HAND, rtol=1e-14)
-    f = BernoulliFilter(load_scenario("paper-fig3", filter__particles=500, filter__birth_particles=100), np.random.default_rng(0))
+    f = make_filter(load_scenario("paper-fig3", filter__particles=500, filter__birth_particles=100), np.random.default_rng(0))
     f.reset_to(0.8)
     pred = f.predict()
     post = f.update(np.array([[5.0, 0.5, 1.0]]), U, AIM, 0.0)
@@ -121,7 +122,7 @@ def test_posterior_existence_is_stable_at_the_extremes():
 def test_prediction_follows_the_printed_equations():
     """e_{t|t-1} = p_b (1 - e) + p_s e; predicted mean mixes survivors and the uniform birth."""
     s = load_scenario("paper-fig3", filter__particles=2000, filter__birth_particles=100)
-    f = BernoulliFilter(s, np.random.default_rng(1))
+    f = make_filter(s, np.random.default_rng(1))
     mean0 = np.array([20.0, 30.0, 40.0, 1.0, -1.0, 0.5])
     f.reset_to(0.6, mean0, np.diag([1.0, 1, 1, 0.01, 0.01, 0.01]))
     pred = f.predict()
@@ -149,7 +150,7 @@ def test_importance_sampled_birth_keeps_the_uniform_birth_density():
     exact = (y[0] ** 2 + s_rho**2) * math.sin(y[2]) * math.exp(-(s_phi**2) / 2) / 100.0**3
     estimates = {}
     for proposal in ("importance", "plain"):
-        f = BernoulliFilter(S, np.random.default_rng(7), birth_proposal=proposal)
+        f = make_filter(S, np.random.default_rng(7), birth_proposal=proposal)
         estimates[proposal] = np.array([_is_estimate(f, y[None, :], u, y) for _ in range(40)])
     imp, plain = estimates["importance"], estimates["plain"]
     assert abs(imp.mean() / exact - 1) < 0.03
@@ -159,7 +160,7 @@ def test_importance_sampled_birth_keeps_the_uniform_birth_density():
 
 def test_measurement_birth_places_particles_at_the_last_scan():
     s = load_scenario("paper-fig3", filter__birth="measurement", filter__particles=500, filter__birth_particles=400)
-    f = BernoulliFilter(s, np.random.default_rng(2))
+    f = make_filter(s, np.random.default_rng(2))
     x = np.array([30.0, 30.0, 30.0])
     f.predict()
     f.update(h(x, U)[None, :], U, x, ANT.l_max)
@@ -171,7 +172,7 @@ def test_measurement_birth_places_particles_at_the_last_scan():
 
 
 def test_reset_to_redraws_from_the_fused_gaussian():
-    f = BernoulliFilter(load_scenario("paper-fig3", filter__particles=4000), np.random.default_rng(3))
+    f = make_filter(load_scenario("paper-fig3", filter__particles=4000), np.random.default_rng(3))
     m = np.array([10.0, 20, 30, 1, 2, 3])
     C = np.diag([4.0, 1, 1, 0.25, 0.25, 0.25])
     f.reset_to(0.9, m, C)
@@ -184,7 +185,7 @@ def test_reset_to_redraws_from_the_fused_gaussian():
 
 def test_same_seed_same_result():
     def run(seed):
-        f = BernoulliFilter(load_scenario("paper-fig3", filter__particles=300, filter__birth_particles=100), np.random.default_rng(seed))
+        f = make_filter(load_scenario("paper-fig3", filter__particles=300, filter__birth_particles=100), np.random.default_rng(seed))
         f.predict()
         return f.update(np.array([[6.0, 0.6, 0.9], [20.0, -1.0, 2.0]]), U, AIM, ANT.l_max)
 
@@ -200,8 +201,8 @@ def test_same_seed_same_result():
 def track_one_target(scenario, seed, distance, present_until=10, steps=14):
     """An agent ``distance`` m behind the target along -(1,1,1)/sqrt(3), antenna at it, full
     power; once the target has gone, the agent follows the filter's predicted mean."""
-    ant = AntennaModel.from_scenario(scenario)
-    f = BernoulliFilter(scenario, np.random.default_rng(seed))
+    ant = antenna_model(scenario)
+    f = make_filter(scenario, np.random.default_rng(seed))
     world = np.random.default_rng(10_000 + seed)
     x = np.array(scenario.target.initial, dtype=float)
     offset = -distance * np.ones(3) / math.sqrt(3)
@@ -296,7 +297,7 @@ SMALL = {
 )
 def test_any_scan_any_level_gives_finite_estimates(kind, level, seed, existence, collapsed, birth):
     rng = np.random.default_rng(seed)
-    f = BernoulliFilter(SMALL[birth], rng)
+    f = make_filter(SMALL[birth], rng)
     u = np.array([30.0, 30.0, 30.0])
     aim = np.array([40.0, 35.0, 30.0])
     if collapsed:  # every particle at one point: a singular covariance
@@ -328,7 +329,7 @@ def test_particles_hold_the_young_component_by_its_mass():
     """Planning samples ``particles``: after a detection from nothing, the births the scan
     supported (the young component) are part of it with their share of s_t."""
     s = load_scenario("paper-fig3", filter__particles=2000, filter__birth_particles=400)
-    f = BernoulliFilter(s, np.random.default_rng(8))
+    f = make_filter(s, np.random.default_rng(8))
     x = np.array([40.0, 42.0, 38.0])
     u = x - 5.0
     for _ in range(2):

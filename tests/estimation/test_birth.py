@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.estimation.bernoulli import BernoulliFilter, Scan
+from trackjam.estimation.bernoulli import Scan
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
     YOUNG_INFLATE,
@@ -19,12 +19,12 @@ from trackjam.estimation.birth import (
     redraw_young,
 )
 from trackjam.estimation.kernels import kernel_cv_predict
-from trackjam.radio.antenna import AntennaModel
 from trackjam.radio.measurement import clutter_density, h
+from trackjam.simulation.build import antenna_model, make_filter
 
 # a small box and coarse angles, so that brute force on b itself is accurate
 S = load_scenario("paper-fig3", ["sensor.noise_std=[0.6, 0.12, 0.12]"])
-ANT = AntennaModel.from_scenario(S)
+ANT = antenna_model(S)
 SIGMA = np.asarray(S.sensor.noise_std)
 LOG_LC = math.log(S.sensor.clutter_rate * clutter_density(ANT.max_range))
 B = UniformBirth(np.zeros(3), np.full(3, 12.0), 3.0)
@@ -109,7 +109,7 @@ def test_measurement_birth_draws_velocity_within_its_own_speed():
 def test_birth_options_split_the_birth_particles_by_the_mixing_share(birth, mix):
     s = load_scenario("paper-fig3", filter__birth=birth, filter__birth_mix=0.3, filter__particles=500,
                       filter__birth_particles=200)
-    f = BernoulliFilter(s, np.random.default_rng(4))
+    f = make_filter(s, np.random.default_rng(4))
     assert f.n_mb == round(mix * 200)
     for _ in range(2):
         f.predict()

@@ -16,12 +16,13 @@ from trackjam.estimation.kernels import (
     kernel_update_factors,
     kernel_weighted_moments,
 )
-from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
+from trackjam.radio.antenna import axis_of, detection_probability
 from trackjam.radio.measurement import clutter_density, h, wrap_angle
 from trackjam.world.motion import cv_matrices
+from trackjam.simulation.build import antenna_model
 
 S = load_scenario("paper-fig3")
-ANT = AntennaModel.from_scenario(S)
+ANT = antenna_model(S)
 SIGMA = np.asarray(S.sensor.noise_std)
 LOG_LC = math.log(S.sensor.clutter_rate * clutter_density(ANT.max_range))
 

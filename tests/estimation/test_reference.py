@@ -7,17 +7,17 @@ import math
 import numpy as np
 
 from trackjam.config import load_scenario
-from trackjam.estimation.bernoulli import BernoulliFilter
-from trackjam.radio.antenna import AntennaModel, detection_probability
+from trackjam.radio.antenna import detection_probability
 from trackjam.radio.measurement import sample_scan
 from trackjam.world.motion import cv_step
 from trackjam.world.target import reflect
+from trackjam.simulation.build import antenna_model, make_filter
 
 DRAWS, STEPS, REPEATS = 20, 12, 4
 CUTOFF = 10.0  # position errors are capped as OSPA caps them (c = 10 m)
 DEFAULT = load_scenario("paper-fig3")
 REFERENCE = load_scenario("paper-fig3", filter__particles=50_000, filter__birth_particles=200_000)
-ANT = AntennaModel.from_scenario(DEFAULT)
+ANT = antenna_model(DEFAULT)
 
 
 def scenario_draw(k):
@@ -39,7 +39,7 @@ def scenario_draw(k):
 
 
 def run(scenario, steps, seed, **kw):
-    f = BernoulliFilter(scenario, np.random.default_rng(seed), **kw)
+    f = make_filter(scenario, np.random.default_rng(seed), **kw)
     e, err = [], []
     for x, u, Z in steps:
         f.predict()

@@ -5,9 +5,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackjam.config import load_scenario
-from trackjam.estimation.bernoulli import BernoulliFilter
 from trackjam.estimation.kernels import kernel_reflect
 from trackjam.world.target import reflect
+from trackjam.simulation.build import make_filter
 
 LOW, HIGH = np.zeros(3), np.full(3, 100.0)
 
@@ -25,7 +25,7 @@ def test_compiled_reflection_matches_the_truths(rows):
 def test_predicted_particles_stay_in_the_area_unless_told_otherwise():
     for walls, inside in (("reflect", True), ("none", False)):
         s = load_scenario("paper-fig3", [f"filter.walls={walls}", "filter.particles=2000"])
-        f = BernoulliFilter(s, np.random.default_rng(0))
+        f = make_filter(s, np.random.default_rng(0))
         f.reset_to(0.9, np.array([99.0, 50, 50, 6, 0, 0]), np.diag([0.1] * 3 + [0.1] * 3))
         f.predict()
         X = f.particles

@@ -8,7 +8,8 @@ import pytest
 
 from trackjam.config import load_scenario
 from trackjam.metrics.ceiling import NEAR, chase, clairvoyant_ceiling
-from trackjam.radio.antenna import AntennaModel, detection_probability
+from trackjam.radio.antenna import detection_probability
+from trackjam.simulation.build import antenna_model
 
 LOW, HIGH = (0.0, 0.0, 0.0), (100.0, 100.0, 100.0)
 
@@ -101,7 +102,7 @@ def test_no_move_of_at_most_one_step_ends_nearer_than_the_straight_one(seed):
 
 
 def test_at_the_default_distance_a_top_power_agent_detects_about_half_the_time():
-    ant = AntennaModel.from_scenario(load_scenario("paper-fig3"))
+    ant = antenna_model(load_scenario("paper-fig3"))
     u = np.array([50.0, 50.0, 50.0])
     x = u + np.array([0.0, 0.0, NEAR])
     p = float(detection_probability(x, u, x, ant.l_max, ant))

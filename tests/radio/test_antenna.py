@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackjam.config import load_scenario
+from trackjam.simulation.build import antenna_model
 from trackjam.radio.antenna import (
-    AntennaModel,
     cone_gain,
     detection_probability,
     inside_cone,
@@ -17,7 +17,7 @@ from trackjam.radio.antenna import (
     received_power,
 )
 
-ANT = AntennaModel.from_scenario(load_scenario("paper-fig3"))  # h_a 40 m, theta_a 80 deg
+ANT = antenna_model(load_scenario("paper-fig3"))  # h_a 40 m, theta_a 80 deg
 APEX = np.zeros(3)
 UP = np.array([0.0, 0.0, 1.0])  # aim point straight above: axis +z
 TAN40 = np.tan(np.deg2rad(40))

@@ -5,10 +5,11 @@ import pytest
 
 from trackjam.config import load_scenario
 from trackjam.metrics.ospa import ospa
-from trackjam.radio.antenna import AntennaModel, detection_probability, interference_matrix, received_power
+from trackjam.radio.antenna import detection_probability, interference_matrix, received_power
 from trackjam.simulation import schema
 from trackjam.simulation.loop import simulate
 from trackjam.simulation.build import displacements as scenario_displacements
+from trackjam.simulation.build import antenna_model
 
 STEP_COLUMNS = [c.name for c in schema.STEPS]
 AGENT_COLUMNS = [c.name for c in schema.AGENTS]
@@ -54,7 +55,7 @@ def test_every_move_is_an_admissible_displacement(fig3):
 
 def test_recorded_physics_agrees_with_recomputation(fig3):
     s, r = fig3
-    ant = AntennaModel.from_scenario(s)
+    ant = antenna_model(s)
     n = s.n_agents
     a = r.agents
     assert np.allclose(a["power_w"], ant.levels_w[a["level_index"]])
@@ -84,7 +85,7 @@ def test_recorded_physics_agrees_with_recomputation(fig3):
 def test_planned_interference_at_the_aim_is_below_delta(fig3):
     """grasp and exact respect Eq. (13) at x_bar; greedy is Eq. (11): each agent's own best p_D."""
     s, r = fig3
-    ant = AntennaModel.from_scenario(s)
+    ant = antenna_model(s)
     D = scenario_displacements(s)
     n = s.n_agents
     for i in range(s.steps):

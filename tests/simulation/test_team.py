@@ -13,6 +13,7 @@ from trackjam.simulation.agent import Message
 from trackjam.simulation.loop import simulate
 from trackjam.simulation.team import Exchange, TeamSettings
 from trackjam.world.moves import displacement_set
+from trackjam.simulation.build import antenna_model
 
 FAST = ["control.solver=exact", "steps=8", "filter.particles=500", "filter.birth_particles=100"]
 
@@ -108,9 +109,8 @@ def test_a_guarded_teammate_is_protected_by_the_exact_plan(seed):
     """A teammate heard from only long ago is a receiver with no moves and no say in Xi: the
     exact plan is the brute-force optimum of that problem and never jams it."""
     s = load_scenario("paper-fig3")
-    from trackjam.radio.antenna import AntennaModel
 
-    ant = AntennaModel.from_scenario(s)
+    ant = antenna_model(s)
     rng = np.random.default_rng(seed)
     aim = rng.uniform(30, 70, 3)
     planned = aim + rng.normal(0, 8, (2, 3))

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from trackjam.config import Scenario, validate_scenario
+from trackjam.simulation.build import antenna_model
 from trackjam.radio.antenna import (
-    AntennaModel,
     detection_probability,
     interference_matrix,
     received_power,
@@ -39,7 +39,7 @@ def fake_run(scenario: Scenario | None = None, seed: int = 7) -> tuple[dict, dic
     """``(steps, agents, scenario)``: column dicts of 1-D numpy arrays, as read from Parquet."""
     s = scenario or fake_scenario()
     rng = np.random.default_rng(seed)
-    ant = AntennaModel.from_scenario(s)
+    ant = antenna_model(s)
     T, N = s.steps, s.n_agents
     lo, hi = np.asarray(s.area.low), np.asarray(s.area.high)
     c = s.metrics.ospa_cutoff

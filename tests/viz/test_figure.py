@@ -9,7 +9,6 @@ from fake_run import AGENT_COLUMNS, STEP_COLUMNS, fake_run
 from matplotlib.figure import Figure
 
 from trackjam.config import load_scenario
-from trackjam.radio.antenna import AntennaModel
 from trackjam.viz.figure import (
     _panel_powers,
     _panel_trajectories,
@@ -22,6 +21,7 @@ from trackjam.viz.figure import (
     to_db,
 )
 from trackjam.viz.replay import replay_figure
+from trackjam.simulation.build import antenna_model
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +144,7 @@ def test_recomputed_interference_matches_the_logged_total_and_jamming(run):
     assert R.shape == (T, N, N)
     assert np.all(R[:, np.arange(N), np.arange(N)] == 0)
     np.testing.assert_allclose(R.sum(axis=2), agent_table(agents, "interference_w", T, N), rtol=1e-12)
-    delta = AntennaModel.from_scenario(scenario).delta_w
+    delta = antenna_model(scenario).delta_w
     assert np.array_equal(R.sum(axis=2) >= delta, agent_table(agents, "jammed", T, N) > 0.5)
     # an antenna that is off sends nothing
     off = agent_table(agents, "power_w", T, N) == 0

@@ -13,9 +13,10 @@ import pytest
 from fake_run import fake_run, fake_scenario
 from test_figure import quiet_run
 
-from trackjam.radio.antenna import AntennaModel, inside_cone
+from trackjam.radio.antenna import inside_cone
 from trackjam.viz.figure import interference_per_step
 from trackjam.viz.replay import MAX_FRAMES, TRAIL_FRAMES, cone_mesh, replay_figure, shown_steps, write_replay
+from trackjam.simulation.build import antenna_model
 
 ERROR_HOOK = """<script>
 function __trackjamReport(msg) {
@@ -131,7 +132,7 @@ def test_jammed_agents_and_jamming_links_follow_the_logs(run):
     fig = replay_figure(steps, agents, scenario)
     T, N = scenario.steps, scenario.n_agents
     R = interference_per_step(agents, scenario)
-    delta = AntennaModel.from_scenario(scenario).delta_w
+    delta = antenna_model(scenario).delta_w
     jammed = agents["jammed"].reshape(T, N)
     x = agents["x"].reshape(T, N)
     for k, frame in enumerate(fig["frames"]):

@@ -20,6 +20,7 @@ from trackjam.control.grasp import solve_grasp
 from trackjam.control.problem import build_problem
 from trackjam.radio.antenna import AntennaModel
 from trackjam.world.moves import displacement_set
+from trackjam.simulation.build import antenna_model
 
 #: displacement sets by their number of controls: (radial steps [m], N_phi, N_theta)
 CONTROL_CASES = {79: ([1.0, 3.0, 5.0], 8, 8), 175: ([1.0, 3.0, 5.0], 16, 8), 11: ([3.0], 4, 8)}
@@ -29,7 +30,7 @@ LOW, HIGH = np.zeros(3), np.full(3, 100.0)
 
 def paper_antenna(opening_deg: float) -> AntennaModel:
     s = load_scenario("paper-fig3")
-    a = AntennaModel.from_scenario(s)
+    a = antenna_model(s)
     return dataclasses.replace(a, half_angle=float(np.deg2rad(opening_deg) / 2))
 
 

@@ -7,9 +7,8 @@ import time
 import numpy as np
 
 from trackjam.config import load_scenario
-from trackjam.estimation.bernoulli import BernoulliFilter
-from trackjam.radio.antenna import AntennaModel
 from trackjam.radio.measurement import clutter_bounds, h
+from trackjam.simulation.build import antenna_model, make_filter
 
 
 def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000, birth_particles: int = 2_000) -> dict:
@@ -23,12 +22,12 @@ def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000,
     n_meas = 4
     s = load_scenario("paper-fig3", filter__particles=particles, filter__birth_particles=birth_particles)
     rng = np.random.default_rng(seed)
-    f = BernoulliFilter(s, rng)
+    f = make_filter(s, rng)
     x = np.array(s.target.initial, dtype=float)
     x[3:] = 0.0  # a hovering target: its scans and the filter's motion model agree
     u = x[:3] - np.array([3.0, 3.0, 3.0])
     level_w = float(s.antenna.levels_w[-1])
-    bounds = clutter_bounds(AntennaModel.from_scenario(s).max_range)
+    bounds = clutter_bounds(antenna_model(s).max_range)
 
     def scan() -> np.ndarray:
         z = h(x, u) + rng.normal(0.0, 1.0, 3) * np.asarray(s.sensor.noise_std)

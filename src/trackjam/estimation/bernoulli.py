@@ -41,7 +41,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import expit
 
-from trackjam.config import Scenario
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
     YOUNG_INFLATE,
@@ -158,12 +157,33 @@ def bernoulli_update(e_pred, X, log_w, Z, u, aim, level_w, ant: AntennaModel, no
     return e, log_post, log_A, log_L
 
 
+@dataclass(frozen=True)
+class FilterParams:
+    """What one agent's filter needs (Section V-A and ours): the model it assumes and its particles."""
+
+    birth_prob: float  # p_b
+    survival_prob: float  # p_s
+    particles: int  # particles of the surviving density
+    birth_particles: int  # particles of the birth density per step
+    birth: str  # "uniform" | "measurement" | "mixed"
+    birth_mix: float  # share of the birth that is measurement-driven under "mixed"
+    measurement_birth_speed: float  # velocity spread of measurement-driven births [m/s]
+    birth_speed: float  # v_b: uniform birth velocity in +-v_b per axis [m/s]
+    accel_var: float  # the filter's Sigma_v scale [m^2/s^4]
+    walls: str  # "reflect" | "none"
+    low: np.ndarray  # (3,) area [m]
+    high: np.ndarray
+    noise_std: np.ndarray  # (3,) Sigma_w diagonal as standard deviations
+    clutter_rate: float  # lambda_c
+
+
 class BernoulliFilter:
     """One agent's Bernoulli particle filter. Call ``predict()`` then ``update(...)`` each step."""
 
     def __init__(
         self,
-        scenario: Scenario,
+        params: FilterParams,
+        antenna: AntennaModel,
         rng: np.random.Generator,
         *,
         existence: float = 0.0,
@@ -175,7 +195,7 @@ class BernoulliFilter:
             raise ValueError(f"birth_proposal must be 'importance' or 'plain', got {birth_proposal!r}")
         if not 0.0 <= proposal_fraction <= 1.0:
             raise ValueError("proposal_fraction must lie in [0, 1]")
-        f = scenario.filter
+        f = params
         self.rng = rng
         self.p_b = float(f.birth_prob)
         self.p_s = float(f.survival_prob)
@@ -186,15 +206,14 @@ class BernoulliFilter:
         self.birth_mix = {"uniform": 0.0, "measurement": 1.0, "mixed": float(f.birth_mix)}[f.birth]
         self.n_mb = int(round(self.birth_mix * self.n_b))
         self.v_m = float(f.measurement_birth_speed)
-        self.accel_var = scenario.filter_accel_var
-        self.ant = AntennaModel.from_scenario(scenario)
-        self.noise_std = np.asarray(scenario.sensor.noise_std, dtype=float)
-        self.lambda_c = float(scenario.sensor.clutter_rate)
+        self.accel_var = float(f.accel_var)
+        self.ant = antenna
+        self.noise_std = np.asarray(f.noise_std, dtype=float)
+        self.lambda_c = float(f.clutter_rate)
         # lambda_c = 0 would make g / (lambda_c p_c) infinite; a tiny floor keeps logs finite
         self.log_lambda_c = math.log(max(self.lambda_c * clutter_density(self.ant.max_range), 1e-300))
         self.walls = f.walls
-        self.b = UniformBirth(np.asarray(scenario.area.low, dtype=float), np.asarray(scenario.area.high, dtype=float),
-                              float(f.birth_speed))
+        self.b = UniformBirth(np.asarray(f.low, dtype=float), np.asarray(f.high, dtype=float), float(f.birth_speed))
         self.importance = birth_proposal == "importance"
         self.proposal_fraction = float(proposal_fraction)
         self.two_scan = bool(two_scan) and self.importance and self.b.v_b > 0.0 and self.n_mb < self.n_b

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from trackjam.config import Scenario
 
 
 @dataclass(frozen=True)
@@ -45,18 +44,6 @@ class AntennaModel:
         """Farthest point of the cone from its apex: the rim, h_a / cos(theta_a / 2)."""
         return self.height / float(np.cos(self.half_angle))
 
-    @classmethod
-    def from_scenario(cls, s: Scenario) -> "AntennaModel":
-        a = s.antenna
-        return cls(
-            height=float(a.height),
-            half_angle=float(np.deg2rad(a.opening_angle_deg) / 2),
-            r0=float(a.r0),
-            n_e=float(a.path_loss_exponent),
-            p_d_max=float(a.p_d_max),
-            levels_w=np.asarray(a.levels_w, dtype=np.float64),
-            delta_w=float(a.delta_w),
-        )
 
 
 def axis_of(apex: np.ndarray, aim: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from trackjam.config import Scenario
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
-from trackjam.estimation.bernoulli import BernoulliFilter
+from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
 from trackjam.world.moves import displacement_set
@@ -49,6 +49,38 @@ def target_params(s: Scenario) -> TargetParams:
         response=response,
         walls=tg.walls,
     )
+
+
+def antenna_model(s: Scenario) -> AntennaModel:
+    """The conic antenna of Eqs. (9)-(10) and (13), in watts and radians."""
+    a = s.antenna
+    return AntennaModel(
+        height=float(a.height),
+        half_angle=float(np.deg2rad(a.opening_angle_deg) / 2),
+        r0=float(a.r0),
+        n_e=float(a.path_loss_exponent),
+        p_d_max=float(a.p_d_max),
+        levels_w=np.asarray(a.levels_w, dtype=np.float64),
+        delta_w=float(a.delta_w),
+    )
+
+
+def filter_params(s: Scenario) -> FilterParams:
+    f = s.filter
+    return FilterParams(
+        birth_prob=float(f.birth_prob), survival_prob=float(f.survival_prob), particles=int(f.particles),
+        birth_particles=int(f.birth_particles), birth=f.birth, birth_mix=float(f.birth_mix),
+        measurement_birth_speed=float(f.measurement_birth_speed), birth_speed=float(f.birth_speed),
+        accel_var=s.filter_accel_var, walls=f.walls, low=np.asarray(s.area.low, dtype=float),
+        high=np.asarray(s.area.high, dtype=float), noise_std=np.asarray(s.sensor.noise_std, dtype=float),
+        clutter_rate=float(s.sensor.clutter_rate),
+    )
+
+
+def make_filter(s: Scenario, rng: np.random.Generator, **options) -> BernoulliFilter:
+    """One agent's filter for scenario ``s`` drawing from ``rng`` (``options``: the filter's
+    keyword arguments)."""
+    return BernoulliFilter(filter_params(s), antenna_model(s), rng, **options)
 
 
 def displacements(s: Scenario) -> np.ndarray:
@@ -101,7 +133,7 @@ def build(s: Scenario) -> Components:
         initial_aim=None if s.agents.initial_aim is None else np.asarray(s.agents.initial_aim, dtype=float),
         low=np.asarray(s.area.low, dtype=float),
         high=np.asarray(s.area.high, dtype=float),
-        antenna=AntennaModel.from_scenario(s),
+        antenna=antenna_model(s),
         displacements=displacements(s),
         pointing=s.antenna.pointing,
         noise_std=s.sensor.noise_std,
@@ -125,7 +157,7 @@ def build(s: Scenario) -> Components:
             search_reseed=s.fusion.search_reseed,
         ),
         target=target_params(s),
-        make_filter=partial(BernoulliFilter, s),
+        make_filter=partial(BernoulliFilter, filter_params(s), antenna_model(s)),
         cue=None if s.filter.cue is None else (s.filter.cue.existence, s.filter.cue.position_std,
                                                s.filter.cue.velocity_std),
     )

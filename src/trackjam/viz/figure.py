@@ -27,7 +27,8 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from trackjam.config import Scenario  # noqa: E402
 from trackjam.metrics.track_quality import CLASSES, step_classes  # noqa: E402
-from trackjam.radio.antenna import AntennaModel, interference_matrix  # noqa: E402
+from trackjam.radio.antenna import interference_matrix  # noqa: E402
+from trackjam.simulation.build import antenna_model
 
 Columns = Mapping[str, np.ndarray]
 
@@ -83,7 +84,7 @@ def interference_per_step(agents: Columns, scenario: Scenario) -> np.ndarray:
     Recomputed with :func:`interference_matrix` from the logged positions after the move, the
     points the antennas aimed at and the transmit powers, so it is what the loop measured.
     """
-    ant = AntennaModel.from_scenario(scenario)
+    ant = antenna_model(scenario)
     T = int(np.max(agents["t"]))
     N = int(np.max(agents["agent"])) + 1
     u = agent_positions(agents, T, N)
@@ -222,7 +223,7 @@ def _panel_levels(ax, agents, scenario, t, T, N) -> None:
 def _panel_jamming(ax, agents, scenario, T, N) -> None:
     """(c) one row per receiver i: a marker in sender j's colour at steps where j alone jams i
     (R_ij >= delta), a black ring where only the total sum_j R_ij >= delta does."""
-    delta = AntennaModel.from_scenario(scenario).delta_w
+    delta = antenna_model(scenario).delta_w
     R = interference_per_step(agents, scenario)
     total = R.sum(axis=2)
     spread = min(0.3, 0.6 / max(N - 1, 1))

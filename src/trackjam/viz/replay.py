@@ -19,6 +19,7 @@ import numpy as np
 
 from trackjam.config import Scenario
 from trackjam.radio.antenna import AntennaModel, axis_of
+from trackjam.simulation.build import antenna_model
 from trackjam.viz.figure import (
     ESTIMATE_COLOUR,
     TRUTH_COLOUR,
@@ -168,7 +169,7 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario, max_frame
     shown = shown_steps(T, max_frames)
     truth = steps_xyz(steps, "truth_")
     est = steps_xyz(steps, "est_")
-    ant = AntennaModel.from_scenario(scenario)
+    ant = antenna_model(scenario)
     u = agent_positions(agents, T, N)
     u_path = np.concatenate([agent_positions(agents, T, N, "prev_")[:1], u], axis=0)
     point = agent_positions(agents, T, N, "point_")
