@@ -34,11 +34,14 @@ _ADDRESS = re.compile(r"^(?:(?P<scheme>[a-z][a-z0-9+.-]*)://)?(?P<host>\[[0-9a-f
 
 
 def one_numba_thread() -> None:
-    """Trials run side by side: each worker gets one numba thread (before numba is imported
-    when possible, else through ``numba.set_num_threads``)."""
-    os.environ["NUMBA_NUM_THREADS"] = "1"
+    """Trials run side by side: each worker gets one numba thread, through the environment
+    before numba is imported, else through ``numba.set_num_threads``. Once numba is loaded the
+    environment is left alone: numba re-reads it at each compilation and refuses a thread count
+    that differs from its running pool's (the in-process executor runs in such a process)."""
     numba = sys.modules.get("numba")
-    if numba is not None:
+    if numba is None:
+        os.environ["NUMBA_NUM_THREADS"] = "1"
+    else:
         numba.set_num_threads(1)
 
 
