@@ -186,3 +186,12 @@ def test_suspicious_values_warn_one_line_each_and_validate_still_says_ok():
 def test_an_ordinary_scenario_gives_no_warning():
     r = trackjam("validate", "paper-fig3")
     assert r.returncode == 0 and r.stderr == ""
+
+
+def test_a_named_pipe_is_refused_without_waiting_for_a_writer(tmp_path):
+    import os
+
+    fifo = tmp_path / "scenario.yaml"
+    os.mkfifo(fifo)
+    r = subprocess.run([sys.executable, "-m", "trackjam", "validate", str(fifo)], capture_output=True, text=True, timeout=60)
+    one_line_exit_2(r, "is a pipe or a socket")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import difflib
 import re
+import stat
 import tomllib
 import typing
 from importlib import resources
@@ -123,6 +124,8 @@ def _read_text(path: Path) -> str:
         raise ConfigError(f"{path}: no such file (and no preset of that name; see `trackjam presets`)")
     if path.is_dir():
         raise ConfigError(f"{path}: is a folder, not a scenario file")
+    if stat.S_ISFIFO(path.stat().st_mode) or stat.S_ISSOCK(path.stat().st_mode):
+        raise ConfigError(f"{path}: is a pipe or a socket, not a scenario file")  # opening one may wait forever
     try:
         with path.open("rb") as f:
             raw = f.read(MAX_FILE_BYTES + 1)
