@@ -21,7 +21,7 @@ def test_show_config_prints_the_resolved_scenario_with_overrides():
     r = runner.invoke(app, ["show-config", "paper-fig3", "--set", "antenna.opening_angle_deg=120"])
     assert r.exit_code == 0
     data = yaml.safe_load(r.output)
-    assert data["antenna"]["opening_angle_deg"] == 120 and data["control"]["samples"] == 10000
+    assert data["antenna"]["opening_angle_deg"] == 120 and data["control"]["grasp"]["samples"] == 10000
 
 
 def test_validate_accepts_a_good_file(tmp_path):
@@ -84,7 +84,7 @@ def one_line_exit_2(r, *words):
         ("antenna.power_levels_db=[off, 5000]", "antenna.power_levels_db"),
         ("area.high=[1e300, 1e300, 1e300]", "area.high"),
         ("agents.n_inclination=1000", "agents.n_inclination"),
-        ("control.samples=1e9", "control.samples"),
+        ("control.grasp.samples=1e9", "control.grasp.samples"),
         ("steps=true", "steps"),
     ],
 )

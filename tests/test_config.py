@@ -112,9 +112,9 @@ def test_a_scenario_must_be_a_mapping():
         ("agents.n_inclination=1000", "agents.n_inclination", "less than or equal to 360"),
         ("sensor.clutter_rate=1e6", "sensor.clutter_rate", "less than or equal to 1000"),
         ("filter.particles=1e9", "filter.particles", "less than or equal to 10000000"),
-        ("control.samples=1e9", "control.samples", "less than or equal to 100000000"),
-        ("control.iterations=1e7", "control.iterations", "less than or equal to 1000000"),
-        ("control.samples=1e7", "control.samples", "past the cap"),
+        ("control.grasp.samples=1e9", "control.grasp.samples", "less than or equal to 100000000"),
+        ("control.grasp.iterations=1e7", "control.grasp.iterations", "less than or equal to 1000000"),
+        ("control.grasp.samples=1e7", "control.grasp.samples", "past the cap"),
         ("steps=true", "steps", "must be an integer"),
         ("steps='30'", "steps", "must be an integer"),
         ("steps=2.5", "steps", "integer"),
@@ -153,7 +153,7 @@ def test_the_bounds_themselves_are_accepted():
             "area.low=[-1e5, -1e5, -1e5]", "area.high=[1e5, 1e5, 1e5]", "antenna.height=1e5",
             "antenna.opening_angle_deg=170", "antenna.power_levels_db=[off, -200, 60]",
             "antenna.interference_limit_db=60", "sensor.noise_std=[1e4, 3.141592653589793, 1e-6]",
-            "filter.birth_speed=1000", "agents.n_inclination=360", "control.iterations=1",
+            "filter.birth_speed=1000", "agents.n_inclination=360", "control.grasp.iterations=1",
         ],
     )
     assert s.antenna.levels_w == pytest.approx([0.0, 1e-20, 1e6])
@@ -199,6 +199,6 @@ def test_the_filters_work_per_step_is_capped():
 
 
 def test_grasp_work_is_checked_only_for_grasp():
-    with pytest.raises(ConfigError, match="control.iterations: one step would take about"):
-        load_scenario("paper-fig3", ["control.iterations=100000"])
-    assert load_scenario("paper-fig3", ["control.iterations=100000", "control.solver=exact"])
+    with pytest.raises(ConfigError, match="control.grasp.iterations: one step would take about"):
+        load_scenario("paper-fig3", ["control.grasp.iterations=100000"])
+    assert load_scenario("paper-fig3", ["control.grasp.iterations=100000", "control.solver=exact"])

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from trackjam.config import load_scenario, scenario_to_dict, validate_scenario
 from trackjam.errors import ConfigError
 
-SMALL = ["steps=3", "filter.particles=200", "filter.birth_particles=50", "control.samples=50", "control.iterations=2"]
+SMALL = ["steps=3", "filter.particles=200", "filter.birth_particles=50", "control.grasp.samples=50", "control.grasp.iterations=2"]
 BASE = scenario_to_dict(load_scenario("paper-fig3", SMALL))
 
 # after acceptance the run is kept short: a mutation may legally ask for a long or heavy run

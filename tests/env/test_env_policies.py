@@ -8,8 +8,8 @@ from trackjam.config import load_scenario
 from trackjam.env import parallel_env, random_policy, rollout, solver_policy
 from trackjam.simulation.loop import simulate
 
-FAST = ["steps=5", "filter.particles=400", "filter.birth_particles=100", "control.samples=300",
-        "control.iterations=3", "control.threads=1"]
+FAST = ["steps=5", "filter.particles=400", "filter.birth_particles=100", "control.grasp.samples=300",
+        "control.grasp.iterations=3", "control.grasp.threads=1"]
 TIMING = {"solve_s", "step_s"}
 
 

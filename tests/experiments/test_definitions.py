@@ -50,7 +50,7 @@ def test_the_base_is_the_papers_settings_without_occlusions():
     s = _scenarios("constraints")[0]
     assert s.target.occlusions == [] and s.target.appears == 1 and s.target.disappears is None
     assert s.steps == 30 and s.n_agents == 3
-    assert s.antenna.opening_angle_deg == 80 and s.control.samples == 10000
+    assert s.antenna.opening_angle_deg == 80 and s.control.grasp.samples == 10000
     np.testing.assert_allclose(s.antenna.levels_w[-1], 10**0.05)
 
 

@@ -58,7 +58,7 @@ def test_the_summary_is_the_same_with_one_and_two_local_workers(reference, tmp_p
 
 
 # the real simulation, as small as it gets: 3 steps, few particles, few GRASP samples
-TINY = ["filter.particles=200", "filter.birth_particles=50", "control.samples=20", "control.iterations=2"]
+TINY = ["filter.particles=200", "filter.birth_particles=50", "control.grasp.samples=20", "control.grasp.iterations=2"]
 
 
 def test_real_trials_give_the_same_summary_with_one_or_two_workers_and_on_dask(cluster, tmp_path):

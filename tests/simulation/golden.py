@@ -16,8 +16,8 @@ TIMING = {"solve_s", "step_s"}  # wall times differ run to run
 
 CASES = {
     "fig3-exact": ("paper-fig3", ["control.solver=exact"]),
-    "fig3-grasp": ("paper-fig3", ["control.solver=grasp", "control.samples=300", "control.iterations=8",
-                                  "control.threads=1"]),
+    "fig3-grasp": ("paper-fig3", ["control.solver=grasp", "control.grasp.samples=300", "control.grasp.iterations=8",
+                                  "control.grasp.threads=1"]),
     "fig3-greedy-aim": ("paper-fig3", ["control.solver=greedy", "antenna.pointing=aim"]),
     "literal-hover": ("paper-fig3-literal", ["control.solver=exact", "steps=12"]),
     "fig3-exact-mean-measurement": ("paper-fig3", ["control.solver=exact", "fusion.existence=mean",

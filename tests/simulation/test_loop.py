@@ -129,7 +129,7 @@ def test_over_seeds_existence_follows_detectability(solver):
 
 
 def test_same_seed_same_logs_different_seed_different_logs():
-    s = load_scenario("paper-fig3", ["control.solver=grasp", "steps=8", "control.samples=500", "control.iterations=5"])
+    s = load_scenario("paper-fig3", ["control.solver=grasp", "steps=8", "control.grasp.samples=500", "control.grasp.iterations=5"])
     a, b = simulate(s), simulate(s)
     for k in a.agents:
         assert np.array_equal(a.agents[k], b.agents[k], equal_nan=a.agents[k].dtype.kind == "f")

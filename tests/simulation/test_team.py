@@ -132,7 +132,7 @@ def test_the_log_says_whether_the_plan_is_proven_optimal():
     tracking = exact.steps["mode"] == "track"
     assert tracking.any()
     assert np.all(exact.steps["optimal"][tracking]) and np.all(exact.steps["gap"][tracking] == 0)
-    grasp = simulate(load_scenario("paper-fig3", ["control.solver=grasp", "control.samples=50", "control.iterations=3",
+    grasp = simulate(load_scenario("paper-fig3", ["control.solver=grasp", "control.grasp.samples=50", "control.grasp.iterations=3",
                                                   "steps=3", "filter.particles=500", "filter.birth_particles=100"]))
     assert not grasp.steps["optimal"].any() and np.all(np.isnan(grasp.steps["gap"]))
 

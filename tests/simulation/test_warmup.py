@@ -31,7 +31,7 @@ after = signatures()
 print(sum(warm.values()) - sum(start.values()), {k: v for k, v in after.items() if warm.get(k) != v})
 """
 
-SMALL = ["steps=18", "filter.particles=300", "filter.birth_particles=100", "control.samples=200", "control.iterations=3"]
+SMALL = ["steps=18", "filter.particles=300", "filter.birth_particles=100", "control.grasp.samples=200", "control.grasp.iterations=3"]
 
 
 @pytest.mark.parametrize(
@@ -53,7 +53,7 @@ def test_after_the_warm_up_the_run_compiles_nothing(extra):
 def test_the_warm_up_twin_keeps_what_selects_kernels_and_shrinks_the_rest():
     s = load_scenario("paper-fig3", ["control.solver=exact", "agents.n_azimuth=4", "steps=50"])
     w = warm_up_scenario(s)
-    assert w.steps == WARM_STEPS and w.filter.particles < 100 and w.control.iterations == 2
+    assert w.steps == WARM_STEPS and w.filter.particles < 100 and w.control.grasp.iterations == 2
     assert w.target.appears == 1 and w.target.occlusions == []
     assert (w.control.solver, w.agents, w.antenna, w.sensor, w.fusion) == (s.control.solver, s.agents, s.antenna, s.sensor, s.fusion)
     assert w.filter.birth == s.filter.birth and w.filter.cue == s.filter.cue and w.seed == s.seed

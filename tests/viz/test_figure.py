@@ -71,7 +71,7 @@ def real_run():
     from trackjam.simulation.loop import simulate
 
     s = load_scenario("paper-fig3", ["steps=4", "filter.particles=300", "filter.birth_particles=60",
-                                     "control.samples=50", "control.iterations=2", "target.occlusions=[[2, 2]]"])
+                                     "control.grasp.samples=50", "control.grasp.iterations=2", "target.occlusions=[[2, 2]]"])
     r = simulate(s)
     return r.steps, r.agents, s
 

@@ -34,7 +34,7 @@ _NAME = re.compile(r"[^\W][\w.+-]*")
 _DEFAULTS = {
     "agents.initial": 3, "agents.radial_steps": 3, "agents.n_inclination": 8, "agents.n_azimuth": 8,
     "filter.particles": 10_000, "filter.birth_particles": 2000, "sensor.clutter_rate": 3.0,
-    "steps": 30, "control.samples": 10_000, "control.iterations": 100,
+    "steps": 30, "control.grasp.samples": 10_000, "control.grasp.iterations": 100,
 }
 
 
@@ -110,8 +110,8 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
     }
     if s.control.solver == "grasp":
         out["work_grasp"] = (
-            float(N) * s.control.samples * s.control.iterations * N,
-            ("control.samples", "control.iterations", "agents.initial"),
+            float(N) * s.control.grasp.samples * s.control.grasp.iterations * N,
+            ("control.grasp.samples", "control.grasp.iterations", "agents.initial"),
         )
     return out
 

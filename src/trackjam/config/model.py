@@ -320,12 +320,9 @@ class Fusion(_Model):
     )
 
 
-class Control(_Model):
-    """The joint choice of moves and levels (Sections V-B to V-D)."""
+class Grasp(_Model):
+    """The options of the paper's distributed GRASP (Section V-D)."""
 
-    solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="`greedy` (Eq. 11), `grasp` (the paper, Sec. V-D) or `exact` (ours: the proven optimum of Eqs. 12-13)")
-    at_least: Integer(1, MAX_AGENTS) = Field(2, description="n of Xi^N_n: at least n of N agents detect, in [1, N]")
-    constraints: StrictBool = Field(True, description="enforce the interference constraints, Eq. (13)")
     samples: Integer(1, 100_000_000) = Field(
         10000, description="n_s, GRASP joint samples per iteration, in [1, 1e8] (and the work check)"
     )
@@ -338,6 +335,15 @@ class Control(_Model):
         description="threads (1 to 1024) running the agents' GRASP searches side by side (same result for any value); "
         "null: one per agent up to the CPU count, or 1 inside experiment workers",
     )
+
+
+class Control(_Model):
+    """The joint choice of moves and levels (Sections V-B to V-D)."""
+
+    solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="`greedy` (Eq. 11), `grasp` (the paper, Sec. V-D) or `exact` (ours: the proven optimum of Eqs. 12-13)")
+    at_least: Integer(1, MAX_AGENTS) = Field(2, description="n of Xi^N_n: at least n of N agents detect, in [1, N]")
+    constraints: StrictBool = Field(True, description="enforce the interference constraints, Eq. (13)")
+    grasp: Grasp = Field(default_factory=Grasp, description="GRASP's options (Section V-D)")
     time_limit_s: Real(gt=0, le=3600) = Field(
         1.0,
         description="`exact`: wall-time budget of one step's search [s] (ours); when it runs out the best plan "

@@ -179,7 +179,7 @@ def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = 
     data["steps"] = steps
     data.setdefault("target", {})["occlusions"] = []
     # trials already run side by side: each one's GRASP searches run one after another
-    data.setdefault("control", {})["threads"] = 1
+    data.setdefault("control", {}).setdefault("grasp", {})["threads"] = 1
     return apply_overrides(data, overrides)
 
 

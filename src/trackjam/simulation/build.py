@@ -143,9 +143,9 @@ def build(s: Scenario) -> Components:
         gate=float(s.metrics.gate),
         max_step=float(max(s.agents.radial_steps)),
         plan=PlanSettings(
-            solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.samples,
-            iterations=c.iterations, neighbours=c.neighbours,
-            threads=c.threads or default_threads(s.n_agents), fallback=c.fallback,
+            solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.grasp.samples,
+            iterations=c.grasp.iterations, neighbours=c.grasp.neighbours,
+            threads=c.grasp.threads or default_threads(s.n_agents), fallback=c.fallback,
             time_limit_s=c.time_limit_s, belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
         ),
         team=TeamSettings(

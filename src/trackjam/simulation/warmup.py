@@ -22,7 +22,8 @@ def warm_up_scenario(s: Scenario) -> Scenario:
             "steps": WARM_STEPS,
             "target": target,
             "filter": s.filter.model_copy(update={"particles": 40, "birth_particles": 20}),
-            "control": s.control.model_copy(update={"samples": min(s.control.samples, 20), "iterations": 2}),
+            "control": s.control.model_copy(update={"grasp": s.control.grasp.model_copy(
+                update={"samples": min(s.control.grasp.samples, 20), "iterations": 2})}),
         }
     )
 
