@@ -27,3 +27,14 @@ def test_model_packages_never_import_the_configuration(package):
         if any(m == "trackjam.config" or m.startswith("trackjam.config.") for m in imported_modules(p))
     ]
     assert not offenders
+
+
+def test_the_readmes_layout_names_every_module():
+    readme = (SRC.parents[1] / "README.md").read_text()
+    layout = readme.split("## Layout of the code", 1)[1]
+    missing = []
+    for package in sorted(p for p in SRC.iterdir() if p.is_dir() and (p / "__init__.py").exists()):
+        row = next((line for line in layout.splitlines() if line.startswith(f"| `src/trackjam/{package.name}/`")), "")
+        missing += [f"{package.name}/{m.name}" for m in sorted(package.glob("*.py"))
+                    if m.name != "__init__.py" and f"`{m.name}`" not in row]
+    assert not missing, f"README's layout does not name {missing}"
