@@ -162,7 +162,7 @@ class Team:
                 decisions[j] = Decision("external", int(moves[j]), int(levels[j]), x_bars[j], x_bars[j], np.nan,
                                         len(self.fresh(j)))
             return decisions, time.perf_counter() - t0
-        proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan)
+        proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan, t0)
         inboxes = self.exchange.send(self.t, "plan", [Message(p.sender, "plan", self.t, plan=p) for p in proposals])
         for j in working:
             best = adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
@@ -172,7 +172,8 @@ class Team:
                                     best.optimal, best.gap)
         return decisions, time.perf_counter() - t0
 
-    def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings) -> list[Proposal]:
+    def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings,
+                   t0: float) -> list[Proposal]:
         """Each working agent's plan over the teammates it heard from this step. Agents holding
         the same problem solve it together (deterministic solvers once; GRASP one search each)."""
         groups: dict[tuple, list[int]] = {}
@@ -213,7 +214,7 @@ class Team:
                 problem = problem.guarded(len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
                                  [self.agents[j].plan_rng for j in members], plan.samples, plan.iterations,
-                                 plan.neighbours, plan.threads, plan.time_limit_s)
+                                 plan.neighbours, plan.threads, _remaining(plan.time_limit_s, t0))
             mode = "search" if searching else "track"
             for j, (sol, value) in zip(members, found):
                 n = len(rows)
@@ -271,3 +272,12 @@ def own_scan_raised(index: int, posteriors: list[Message]) -> bool:
     """Agent ``index``'s own scan carried evidence for the target: e_t > e_{t|t-1}."""
     own = next(m for m in posteriors if m.sender == index)
     return own.estimate.existence > own.prior_existence
+
+
+def _remaining(budget_s: float | None, t0: float) -> float | None:
+    """What is left of the decision's time budget (``control.time_limit_s``) since ``t0``: the
+    tables a search needs are built on the same clock, so a budgeted step's whole decision stays
+    within it (a search always gets a millisecond to return a feasible plan)."""
+    if budget_s is None:
+        return None
+    return max(budget_s - (time.perf_counter() - t0), 1e-3)
