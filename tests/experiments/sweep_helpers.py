@@ -38,6 +38,12 @@ def fake_trial(scenario: Scenario) -> dict:
         "agent_received_w_mean": float(1e-4 * rng.uniform() * len(scenario.agents.radial_steps)),
         "transmit_w_mean": float(rng.choice([0.0, 1e-5, 0.1995, 1.122])),
         "ospa_mean": float(ospa.mean()),
+        # the track quality a real trial reports: shares of the steps, a re-acquisition or not
+        "held_share": float(np.mean(ospa < 2.0)),
+        "false_track_share": float(np.mean((ospa >= 2.0) & (ospa < 3.0))),
+        "missed_share": float(np.mean(ospa >= 3.0)),
+        "ceiling_share": float(np.mean(d <= 8.0)),
+        "reacquired_after_last_spell": float(rng.uniform() < 0.5),
         "step_s_mean": time.perf_counter() % 1.0,  # wall time: varies on purpose
         "solve_s_mean": 0.001,
         "steps": {"t": np.arange(1, scenario.steps + 1), "ospa": ospa},

@@ -6,9 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from trackjam.config import load_scenario
 from trackjam.errors import ConfigError
 from trackjam.experiments.definitions import (
+    COMMS_VARIANTS,
+    DRAW,
     EXPERIMENTS,
+    HOLDING_VARIANTS,
+    SEED,
     base_data,
     configuration_columns,
     draw_for,
@@ -36,7 +41,7 @@ def test_constraints_and_solvers_compare_one_setting_each():
     assert [configuration_columns(s)["solver"] for s in _scenarios("solvers")] == ["grasp", "exact"]
 
 
-@pytest.mark.parametrize("name", list(EXPERIMENTS))
+@pytest.mark.parametrize("name", [n for n, e in EXPERIMENTS.items() if e.trials == DRAW])
 def test_every_configuration_sees_the_same_trial(name):
     ss = _scenarios(name, k=4, seed=9)
     for s in ss[1:]:
@@ -81,3 +86,42 @@ def test_bad_overrides_are_one_line_config_errors(override, words):
 def test_unknown_experiment_names_the_choices():
     with pytest.raises(ConfigError, match="table1, constraints, solvers"):
         get_experiment("table2")
+
+
+@pytest.mark.parametrize("name", [n for n, e in EXPERIMENTS.items() if e.trials == SEED])
+def test_seed_experiments_run_fig3_itself_with_one_truth_per_trial(name):
+    """Every configuration of trial k shares Fig. 3's start and occlusion and trial k's seed (the
+    same truth, paired); another trial has another seed."""
+    fig3 = load_scenario("paper-fig3")
+    trial0, trial1 = _scenarios(name, k=0, seed=9), _scenarios(name, k=1, seed=9)
+    for s in trial0 + trial1:
+        assert s.target.initial == fig3.target.initial and s.agents.initial == fig3.agents.initial
+        assert s.target.occlusions == fig3.target.occlusions and s.control.solver == "exact"
+    assert len({s.seed for s in trial0}) == 1 and len({s.seed for s in trial1}) == 1
+    assert trial0[0].seed != trial1[0].seed
+
+
+def test_holding_compares_the_papers_pointing_with_each_option():
+    ss = _scenarios("holding")
+    assert [c.label for c in get_experiment("holding").configurations] == [label for label, _ in HOLDING_VARIANTS]
+    assert [s.antenna.pointing for s in ss[:2]] == ["truth", "aim"]
+    assert all(s.antenna.pointing == "aim" for s in ss[2:])
+
+
+def test_comms_sweeps_loss_delay_and_failures_with_aimed_antennas():
+    ss = _scenarios("comms")
+    assert len(ss) == len(COMMS_VARIANTS)
+    assert [s.comms.loss for s in ss[:5]] == [0.0, 0.1, 0.3, 0.5, 1.0]
+    assert ss[5].comms.delay_steps == 1 and ss[5].comms.loss == 0
+    assert [(f.agent, f.step, f.mode) for f in ss[6].comms.failures] == [(0, 10, "publisher")]
+    assert [(f.agent, f.step, f.mode) for f in ss[7].comms.failures] == [(0, 10, "breakdown")]
+    assert all(s.antenna.pointing == "aim" and s.control.solver == "exact" for s in ss)
+
+
+def test_seed_experiments_let_the_user_move_the_occlusion_but_not_the_sweep():
+    ss = _scenarios("holding", overrides=["target.occlusions=[[3, 4]]"])
+    assert all([list(o) for o in s.target.occlusions] == [[3, 4]] for s in ss)
+    with pytest.raises(ConfigError, match="swept by experiment holding"):
+        _scenarios("holding", overrides=["antenna.pointing=aim"])
+    with pytest.raises(ConfigError, match="--seed"):
+        _scenarios("comms", overrides=["seed=4"])

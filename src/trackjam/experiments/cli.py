@@ -8,7 +8,8 @@ from trackjam.experiments.engine import run_experiment
 from trackjam.experiments.definitions import get_experiment
 
 OPTIONS = {
-    "NAME": "table1 (Table I / Fig. 4), constraints (Fig. 5) or solvers (GRASP vs exact; ours)",
+    "NAME": "table1 (Table I / Fig. 4), constraints (Fig. 5), or ours: solvers (GRASP vs exact), "
+            "holding (track quality on Fig. 3), comms (message faults)",
     "--trials": "trials per configuration, the same draws for every configuration (paper: 20)",
     "--steps": "steps of dT = 1 s per trial (paper: 30)",
     "--seed": "experiment seed; trial k's draw and each (configuration, trial) seed derive from it",
@@ -41,13 +42,14 @@ def experiment_command(
     table.add_column("#", justify="right")
     table.add_column("configuration")
     table.add_column("trials", justify="right")
-    metrics = get_experiment(name).metrics
-    for stem, _, _ in metrics:
+    experiment = get_experiment(name)
+    for stem, _, _ in experiment.metrics + experiment.counts:
         table.add_column(stem, justify="right")
     table.add_column("step [s]", justify="right")
     for row, timing in zip(result.summary, result.timing):
-        cells = [f"{row[f'{s}_mean']:.3g} ± {row[f'{s}_ci95']:.2g}" for s, _, _ in metrics]
+        cells = [f"{row[f'{s}_mean']:.3g} ± {row[f'{s}_ci95']:.2g}" for s, _, _ in experiment.metrics]
+        cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
         table.add_row(str(row["config"]), row["label"], str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
-    Console(width=160).print(table)
+    Console(width=220).print(table)
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")

@@ -1,14 +1,22 @@
 """The experiments: which configurations are compared on the same trials, and the scenario of
 each (configuration, trial).
 
+The paper's (Section VI), on its trial draw (target uniform in the area, pursuers in a 20 m ball
+around it) and the ``paper-fig3`` settings without Fig. 3's occlusions:
+
 - ``table1``: the 8 configurations of Table I (Fig. 4): 11 mobility controls (Delta_R = [3] m,
   N_phi = 4, N_theta = 8; the 3 m is ours, docs/model.md) or 79 controls (Delta_R = [1, 3, 5] m,
   N_phi = N_theta = 8), times theta_a in {60, 80, 100, 120} deg.
 - ``constraints``: Fig. 5, the interference constraints of Eq. (13) enabled and disabled.
 - ``solvers`` (beyond the paper): the paper's GRASP against the exact optimum of Eqs. (12)-(13).
 
-The base scenario is the paper's settings (Section VI-A; the ``paper-fig3`` preset) without
-Fig. 3's occlusions, with the experiment's number of steps and the user's ``--set`` overrides.
+Ours, on Fig. 3 itself (the ``paper-fig3`` scenario with its occlusion, the exact solver), trial
+k varying only the seed, so the truth's random walk and every other random choice change from
+trial to trial while every configuration of trial k sees the same truth:
+
+- ``holding``: how well the team holds the target, judged by the truth, for the paper's
+  behaviour and each pursuit option (:data:`HOLDING_VARIANTS`), beside the clairvoyant ceiling;
+- ``comms``: the distributed team (``pointing: aim``) under lost and late messages and failures.
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ from trackjam.config import (
     validate_scenario,
 )
 from trackjam.errors import ConfigError
-from trackjam.experiments.summary import METRICS, Metric
+from trackjam.experiments.summary import COUNTS, METRICS, QUALITY, Count, Metric
 from trackjam.experiments.trials import TrialDraw, draw_trial, simulation_seed, trial_fields
 from trackjam.simulation.build import displacements as scenario_displacements
 
@@ -32,6 +40,10 @@ BASE_PRESET = "paper-fig3"
 
 CONTROLS_11 = {"agents.radial_steps": [3.0], "agents.n_inclination": 4, "agents.n_azimuth": 8}
 CONTROLS_79 = {"agents.radial_steps": [1.0, 3.0, 5.0], "agents.n_inclination": 8, "agents.n_azimuth": 8}
+
+# How an experiment's trials differ: the paper's trial draw of Section VI, or Fig. 3 itself with
+# the seed of trial k (configuration-independent, so every configuration sees the same truth).
+DRAW, SEED = "draw", "seed"
 
 
 @dataclass(frozen=True)
@@ -50,8 +62,9 @@ class Panel:
 
     title: str
     ylabel: str
-    series: tuple[tuple[str, str | None], ...]  # (metric stem, legend or None)
+    series: tuple[tuple[str, str | None], ...]  # (metric or count stem, legend or None)
     floor: float = 0.0
+    log: bool | None = None  # a log axis; None: when several series are all positive (powers)
 
 
 FIG4_PANELS = (
@@ -66,24 +79,44 @@ FIG5_PANELS = (
     Panel("(c) target received power", "W", (("target_received_w", None),)),
     Panel("(d) tracking error", "OSPA [m]", (("ospa", None),)),
 )
+# ours: track quality judged by the truth beside the ceiling, re-acquisition, OSPA, incidents
+HOLDING_PANELS = (
+    Panel("(a) track quality judged by the truth", "share of detectable steps",
+          (("held", "held"), ("false_track", "false track"), ("missed", "missed"),
+           ("ceiling", "ceiling: clairvoyant chaser within 8 m")), log=False),
+    Panel("(b) held again after the last hidden spell", "share of trials (Clopper-Pearson 95%)",
+          (("reacquired", None),)),
+    Panel("(c) tracking error", "OSPA [m]", (("ospa", None),)),
+    Panel("(d) jamming incidents", "incidents per trial per agent", (("incidents", None),)),
+)
+# the columns of holding and comms: track quality first, then what the paper measures of it
+HOLDING_METRICS: tuple[Metric, ...] = tuple(
+    m for stem in ("held", "false_track", "missed", "ospa", "incidents", "ceiling") for m in METRICS + QUALITY if m[0] == stem
+)
 
 
 @dataclass(frozen=True)
 class Experiment:
     """A comparison of ``configurations`` on the same trials. It names what it summarises
-    (``metrics``: summary.csv's columns, read from each trial's record) and what its figure
-    shows (``panels``, over those metrics); both default to Fig. 4's."""
+    (``metrics``: summary.csv's mean/ci95 columns, and ``counts``: its k-of-n columns, read from
+    each trial's record) and what its figure shows (``panels``, over those); the metrics default
+    to the paper's five and the track quality, the counts to none, the panels to Fig. 4's. Its ``trials`` are the
+    paper's draw (DRAW) or Fig. 3 with trial k's seed (SEED); ``base_settings`` are dotted keys
+    of its own on the base preset."""
 
     name: str
     description: str
     configurations: tuple[Configuration, ...]
     figure: str  # file name of its figure in OUT
     panels: tuple[Panel, ...] = FIG4_PANELS
-    metrics: tuple[Metric, ...] = METRICS
+    metrics: tuple[Metric, ...] = METRICS + QUALITY
     xlabel: str = ""  # below the figure; ticks are the configurations' labels unless it is set
+    counts: tuple[Count, ...] = ()
+    trials: str = DRAW
+    base_settings: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        stems = {m[0] for m in self.metrics}
+        stems = {m[0] for m in self.metrics + self.counts}
         unknown = [stem for p in self.panels for stem, _ in p.series if stem not in stems]
         if unknown:
             raise ValueError(f"experiment {self.name}: panels show {unknown}, which are not among its metrics")
@@ -107,7 +140,30 @@ def _table1() -> Experiment:
         tuple(configurations),
         "fig4.png",
         xlabel="configuration (Table I): 1-4: 11 controls, 5-8: 79 controls; theta_a 60/80/100/120 deg",
+        counts=COUNTS,
     )
+
+
+# The rows of `holding`, in order: (label, dotted keys). The paper's behaviour with the paper's
+# idealised pointing and with the pointing a real team has, then each option beyond the paper
+# alone on top of `pointing: aim`.
+HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("paper, pointing: truth", {"antenna.pointing": "truth"}),
+    ("paper, pointing: aim", {"antenna.pointing": "aim"}),
+    ("aim + measurement birth", {"antenna.pointing": "aim", "filter.birth": "measurement"}),
+)
+
+# The rows of `comms`: the fault model of the distributed team, one fault at a time.
+COMMS_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
+    *((f"loss {p:g}", {"comms.loss": p}) for p in (0.0, 0.1, 0.3, 0.5, 1.0)),
+    ("delay 1 step", {"comms.delay_steps": 1}),
+    ("agent 0's publisher fails at step 10", {"comms.failures": [{"agent": 0, "step": 10, "mode": "publisher"}]}),
+    ("agent 0 breaks down at step 10", {"comms.failures": [{"agent": 0, "step": 10, "mode": "breakdown"}]}),
+)
+
+
+def _variants(rows: tuple[tuple[str, dict[str, Any]], ...]) -> tuple[Configuration, ...]:
+    return tuple(Configuration(i, label, settings) for i, (label, settings) in enumerate(rows, start=1))
 
 
 EXPERIMENTS: dict[str, Experiment] = {
@@ -121,6 +177,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         ),
         "fig5.png",
         panels=FIG5_PANELS,
+        counts=COUNTS,
     ),
     "solvers": Experiment(
         "solvers",
@@ -130,13 +187,36 @@ EXPERIMENTS: dict[str, Experiment] = {
             Configuration(2, "exact", {"control.solver": "exact"}),
         ),
         "solvers.png",
+        counts=COUNTS,
+    ),
+    "holding": Experiment(
+        "holding",
+        "ours: holding the target on Fig. 3 (exact solver), judged by the truth",
+        _variants(HOLDING_VARIANTS),
+        "holding.png",
+        panels=HOLDING_PANELS,
+        metrics=HOLDING_METRICS,
+        counts=COUNTS,
+        trials=SEED,
+        base_settings={"control.solver": "exact"},
+    ),
+    "comms": Experiment(
+        "comms",
+        "ours: the distributed team on Fig. 3 (exact, pointing: aim) under message faults",
+        _variants(COMMS_VARIANTS),
+        "comms.png",
+        panels=HOLDING_PANELS,
+        metrics=HOLDING_METRICS,
+        counts=COUNTS,
+        trials=SEED,
+        base_settings={"control.solver": "exact", "antenna.pointing": "aim"},
     ),
 }
 
 # Keys a trial sets itself: a --set of these (or of a section holding them) is refused.
-_TRIAL_KEYS = (
-    "steps",
-    "seed",
+_SEED_TRIAL_KEYS = ("steps", "seed")
+_DRAW_TRIAL_KEYS = (
+    *_SEED_TRIAL_KEYS,
     "target.initial",
     "target.appears",
     "target.disappears",
@@ -159,10 +239,11 @@ def _overlaps(a: str, b: str) -> bool:
 
 
 def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
-    """Refuse ``--set`` keys that the trial draw or the experiment's sweep sets itself."""
+    """Refuse ``--set`` keys that the trials or the experiment's sweep set themselves."""
+    owned_keys = _DRAW_TRIAL_KEYS if experiment.trials == DRAW else _SEED_TRIAL_KEYS
     for item in overrides:
         key = item.partition("=")[0].strip()
-        for owned in _TRIAL_KEYS:
+        for owned in owned_keys:
             if _overlaps(key, owned):
                 hint = " (use --steps)" if owned == "steps" else " (use --seed)" if owned == "seed" else ""
                 raise ConfigError(f"--set {key}: set by every trial of an experiment, not settable{hint}")
@@ -172,12 +253,16 @@ def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
 
 
 def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = None) -> dict:
-    """The paper's settings without occlusions, ``steps`` steps, and the user's overrides."""
+    """The paper's settings (without Fig. 3's occlusions for the paper's trial draw), the
+    experiment's own settings, ``steps`` steps, and the user's overrides."""
     overrides = list(overrides or [])
     check_overrides(experiment, overrides)
     data, _ = load_scenario_data(BASE_PRESET)
     data["steps"] = steps
-    data.setdefault("target", {})["occlusions"] = []
+    if experiment.trials == DRAW:
+        data.setdefault("target", {})["occlusions"] = []
+    for key, value in experiment.base_settings.items():
+        set_dotted(data, key, value)
     # trials already run side by side: each one's GRASP searches run one after another
     data.setdefault("control", {}).setdefault("grasp", {})["threads"] = 1
     return apply_overrides(data, overrides)
@@ -186,11 +271,14 @@ def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = 
 def trial_scenario(
     experiment: Experiment, base: dict, configuration: Configuration, draw: TrialDraw, seed: int
 ) -> Scenario:
-    """The validated scenario of trial ``draw`` under ``configuration``."""
+    """The validated scenario of trial ``draw`` under ``configuration``. A SEED experiment uses
+    only the draw's index: Fig. 3's start, and a seed of (experiment seed, trial) alone."""
     data = apply_overrides(base, [])
-    for key, value in {**configuration.settings, **trial_fields(draw)}.items():
+    placed = trial_fields(draw) if experiment.trials == DRAW else {}
+    for key, value in {**configuration.settings, **placed}.items():
         set_dotted(data, key, value)
-    data["seed"] = simulation_seed(seed, configuration.index, draw.index)
+    # configuration 0 is no configuration's: a SEED trial's stream is the same under every one
+    data["seed"] = simulation_seed(seed, configuration.index if experiment.trials == DRAW else 0, draw.index)
     data["name"] = f"{experiment.name}-c{configuration.index}-t{draw.index}"
     return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}")
 

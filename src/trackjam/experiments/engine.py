@@ -12,6 +12,7 @@ there is one) have all been checked.
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, field
@@ -55,6 +56,9 @@ def simulate_trial(scenario: Scenario) -> dict[str, Any]:
         "jamming_incidents_per_agent", "target_received_w_mean", "agent_received_w_mean",
         "transmit_w_mean", "ospa_mean", "step_s_mean", "solve_s_mean",
     )}
+    for k in ("held_share", "false_track_share", "missed_share", "ceiling_share", "reacquired_after_last_spell"):
+        value = result.summary[k]  # None where it does not apply (no detectable step, no spell)
+        record[k] = math.nan if value is None else float(value)
     record["jamming_incidents"] = [int(v) for v in result.summary["jamming_incidents"]]
     record["steps"] = result.steps
     return record
@@ -145,7 +149,7 @@ def _claim(out: Path, params: dict) -> None:
 
 def record_keys(experiment: Experiment) -> tuple[str, ...]:
     """The figures every trial record of ``experiment`` must hold: its metrics and the timings."""
-    return tuple(dict.fromkeys(k for _, k, _ in experiment.metrics + TIMING))
+    return tuple(dict.fromkeys(k for _, k, _ in experiment.metrics + experiment.counts + TIMING))
 
 
 def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, int], int]) -> tuple[dict, list[str]]:
@@ -280,7 +284,7 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
             notes: list[str]) -> ExperimentResult:
     from trackjam.experiments.figures import write_figure
 
-    summary = table_rows(records, configurations, experiment.metrics)
+    summary = table_rows(records, configurations, experiment.metrics, experiment.counts)
     timing = table_rows(records, configurations, TIMING)
     write_table(out / "summary.csv", summary)
     write_table(out / "timing.csv", timing)

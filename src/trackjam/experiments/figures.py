@@ -31,31 +31,58 @@ def error_bars(means: list[float], ci95: list[float], floor: float) -> list[list
     return [below, above]
 
 
+# the track-quality classes in the colours of run.png's band (g); the ceiling in grey
+COLOURS = {"held": "#2ca02c", "false_track": "#ff7f0e", "missed": "#d62728", "ceiling": "0.6"}
+
+
+def _series(rows: list[dict[str, Any]], stem: str, floor: float) -> tuple[list[float], list[list[float]]]:
+    """Bar heights and their [below, above] error lengths: a metric's mean and its ci95, or a
+    count's share k / n and its Clopper-Pearson bounds."""
+    if f"{stem}_mean" in rows[0]:
+        m = [_num(r[f"{stem}_mean"]) for r in rows]
+        return m, error_bars(m, [_num(r[f"{stem}_ci95"]) for r in rows], floor)
+    m, below, above = [], [], []
+    for r in rows:
+        n = _num(r[f"{stem}_of"])
+        share = _num(r[stem]) / n if n > 0 else math.nan
+        m.append(share)
+        below.append(0.0 if math.isnan(share) else share - _num(r[f"{stem}_lo"]))
+        above.append(0.0 if math.isnan(share) else _num(r[f"{stem}_hi"]) - share)
+    return m, [below, above]
+
+
 def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
     """The figure of ``experiment`` (its ``panels``) over summary rows ``rows``."""
     panels = experiment.panels
     ncols = 2 if len(panels) > 1 else 1
     nrows = math.ceil(len(panels) / ncols)
-    fig = Figure(figsize=(5 * ncols, 3.5 * nrows))  # no pyplot: no global state, no GUI backend
+    ticks = [str(r["config"]) if experiment.xlabel else str(r["label"]) for r in rows]
+    slanted = max(len(t) for t in ticks) > 16  # long labels are slanted, and given room
+    size = 1.2 if slanted else 1.0
+    fig = Figure(figsize=(5 * ncols * size, 3.5 * nrows * size))  # no pyplot: no global state, no GUI backend
     axes = list(fig.subplots(nrows, ncols, squeeze=False).flat)
     x = list(range(len(rows)))
-    ticks = [str(r["config"]) if experiment.xlabel else str(r["label"]) for r in rows]
     for ax, panel in zip(axes, panels):
         width = 0.8 / len(panel.series)
         values = []
         for i, (stem, legend) in enumerate(panel.series):
-            m = [_num(r[f"{stem}_mean"]) for r in rows]
-            e = [_num(r[f"{stem}_ci95"]) for r in rows]
+            m, err = _series(rows, stem, panel.floor)
             offset = (i - (len(panel.series) - 1) / 2) * width
-            ax.bar([v + offset for v in x], m, width, yerr=error_bars(m, e, panel.floor), capsize=3, label=legend)
+            ax.bar([v + offset for v in x], m, width, yerr=err, capsize=3, label=legend, color=COLOURS.get(stem))
             values += m
         if len(panel.series) > 1:
-            ax.legend()
-            if all(v > 0 for v in values if not math.isnan(v)):
+            ax.legend(fontsize=8, ncol=2 if panel.log is False else 1)
+            positive = all(v > 0 for v in values if not math.isnan(v))
+            if panel.log or (panel.log is None and positive):
                 ax.set_yscale("log")
+            elif panel.ylabel.startswith("share"):  # room for the legend above the bars
+                ax.set_ylim(0, 1.35)
         ax.set_title(panel.title)
         ax.set_ylabel(panel.ylabel)
-        ax.set_xticks(x, ticks)
+        if slanted:
+            ax.set_xticks(x, ticks, rotation=30, ha="right", fontsize=8)
+        else:
+            ax.set_xticks(x, ticks)
     for ax in axes[len(panels):]:  # an odd number of panels leaves a cell empty
         ax.set_visible(False)
     fig.suptitle(f"{experiment.description} (mean and 95% CI over trials)", fontsize=10)

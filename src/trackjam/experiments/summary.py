@@ -26,6 +26,20 @@ METRICS: tuple[Metric, ...] = (
     ("transmit_w", "transmit_w_mean", "transmit power per agent and step [W], Fig. 4(c)"),
     ("ospa", "ospa_mean", "OSPA tracking error (p=2, c=10 m) [m], Fig. 4(d)/5(d)"),
 )
+# track quality judged by the truth and the clairvoyant ceiling (ours; README), shares [0-1]
+QUALITY: tuple[Metric, ...] = (
+    ("held", "held_share", "share of the detectable steps held: confirmed within metrics.gate of the truth"),
+    ("false_track", "false_track_share", "share of the detectable steps with a confirmed track further off"),
+    ("missed", "missed_share", "share of the detectable steps without a confirmed track"),
+    ("ceiling", "ceiling_share", "clairvoyant chaser's share of the detectable steps within 8 m of the target"),
+)
+# (column stem, key of a trial record: 1 yes, 0 no, NaN does not apply, meaning): counted over
+# the trials where it applies, with a Clopper-Pearson 95% interval on the share
+Count = tuple[str, str, str]
+COUNTS: tuple[Count, ...] = (
+    ("reacquired", "reacquired_after_last_spell",
+     "trials held again after their last undetectable spell, of the trials with such a spell"),
+)
 TIMING: tuple[Metric, ...] = (
     ("step_s", "step_s_mean", "wall time per simulation step [s]"),
     ("solve_s", "solve_s_mean", "wall time of the control solver per step [s]"),
@@ -131,13 +145,27 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def count_ci95(values: Iterable[float]) -> tuple[int, int, float, float]:
+    """(k, n, low, high): k trials of the n where the value is not NaN have it 1, and the
+    Clopper-Pearson 95% interval on the share k / n (NaN bounds when n = 0)."""
+    x = np.asarray([math.nan if v is None else v for v in values], dtype=float)
+    x = x[~np.isnan(x)]
+    k, n = int(np.sum(x == 1)), len(x)
+    if n == 0:
+        return 0, 0, math.nan, math.nan
+    ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
+    return k, n, float(ci.low), float(ci.high)
+
+
 def table_rows(
     records: list[Mapping[str, Any]],
     configurations: list[Mapping[str, Any]],
     metrics: tuple[Metric, ...],
+    counts: tuple[Count, ...] = (),
 ) -> list[dict[str, Any]]:
-    """One row per configuration (in order): its parameters, trials, and mean/ci95 of each
-    metric over its trials (records are taken in trial order, whatever order they finished)."""
+    """One row per configuration (in order): its parameters, trials, mean/ci95 of each metric
+    over its trials (records are taken in trial order, whatever order they finished), and for
+    each count ``STEM`` (k), ``STEM_of`` (n), ``STEM_lo`` and ``STEM_hi`` (:func:`count_ci95`)."""
     rows = []
     for conf in configurations:
         mine = sorted((r for r in records if int(r["config"]) == conf["config"]), key=lambda r: int(r["trial"]))
@@ -145,6 +173,8 @@ def table_rows(
         row["trials"] = len(mine)
         for stem, key, _ in metrics:
             row[f"{stem}_mean"], row[f"{stem}_ci95"] = mean_ci95(r[key] for r in mine)
+        for stem, key, _ in counts:
+            row[stem], row[f"{stem}_of"], row[f"{stem}_lo"], row[f"{stem}_hi"] = count_ci95(r[key] for r in mine)
         rows.append(row)
     return rows
 
