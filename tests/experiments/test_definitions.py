@@ -106,6 +106,8 @@ def test_holding_compares_the_papers_pointing_with_each_option():
     assert [c.label for c in get_experiment("holding").configurations] == [label for label, _ in HOLDING_VARIANTS]
     assert [s.antenna.pointing for s in ss[:2]] == ["truth", "aim"]
     assert all(s.antenna.pointing == "aim" for s in ss[2:])
+    assert [s.control.plan_over for s in ss] == ["point"] * 3 + ["belief"] + ["point"] * 4
+    assert [s.control.lead for s in ss][4] == 0.5 and ss[5].control.horizon == 5
 
 
 def test_comms_sweeps_loss_delay_and_failures_with_aimed_antennas():
@@ -125,3 +127,12 @@ def test_seed_experiments_let_the_user_move_the_occlusion_but_not_the_sweep():
         _scenarios("holding", overrides=["antenna.pointing=aim"])
     with pytest.raises(ConfigError, match="--seed"):
         _scenarios("comms", overrides=["seed=4"])
+
+
+def test_the_preset_row_of_holding_is_the_preset_itself():
+    row = next(c for c in get_experiment("holding").configurations if c.label == "preset pursuit")
+    s = _scenarios("holding")[row.index - 1]
+    preset = load_scenario("pursuit")
+    for section in ("target", "agents", "antenna", "sensor", "filter", "fusion", "comms", "metrics"):
+        assert getattr(s, section) == getattr(preset, section), section
+    assert s.control.model_copy(update={"threads": None}) == preset.control.model_copy(update={"threads": None})

@@ -27,7 +27,10 @@ from typing import Any
 from trackjam.config import (
     Scenario,
     apply_overrides,
+    load_scenario,
     load_scenario_data,
+    preset_names,
+    scenario_to_dict,
     set_dotted,
     validate_scenario,
 )
@@ -144,6 +147,23 @@ def _table1() -> Experiment:
     )
 
 
+def _leaves(data: Any, prefix: str = "") -> dict[str, Any]:
+    """A nested mapping as dotted keys -> values (lists are values)."""
+    if not isinstance(data, dict):
+        return {prefix: data}
+    out: dict[str, Any] = {}
+    for k, v in data.items():
+        out |= _leaves(v, f"{prefix}{k}.") if isinstance(v, dict) and v else {f"{prefix}{k}": v}
+    return out
+
+
+def preset_settings(name: str) -> dict[str, Any]:
+    """The dotted keys in which preset ``name`` differs from the base preset, both resolved: a
+    configuration with these settings is that preset."""
+    base, mine = (_leaves(scenario_to_dict(load_scenario(p))) for p in (BASE_PRESET, name))
+    return {k: v for k, v in mine.items() if k not in ("name", "seed", "steps") and base.get(k, object()) != v}
+
+
 # The rows of `holding`, in order: (label, dotted keys). The paper's behaviour with the paper's
 # idealised pointing and with the pointing a real team has, then each option beyond the paper
 # alone on top of `pointing: aim`.
@@ -151,6 +171,11 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("paper, pointing: truth", {"antenna.pointing": "truth"}),
     ("paper, pointing: aim", {"antenna.pointing": "aim"}),
     ("aim + measurement birth", {"antenna.pointing": "aim", "filter.birth": "measurement"}),
+    ("aim + plan over the belief", {"antenna.pointing": "aim", "control.plan_over": "belief"}),
+    ("aim + lead 0.5 step", {"antenna.pointing": "aim", "control.lead": 0.5}),
+    ("aim + intercept horizon 5", {"antenna.pointing": "aim", "control.horizon": 5}),
+    ("aim + search reseed on evidence", {"antenna.pointing": "aim", "fusion.search_reseed": "evidence"}),
+    ("preset pursuit", preset_settings("pursuit")),
 )
 
 # The rows of `comms`: the fault model of the distributed team, one fault at a time.
