@@ -195,3 +195,18 @@ def test_a_named_pipe_is_refused_without_waiting_for_a_writer(tmp_path):
     os.mkfifo(fifo)
     r = subprocess.run([sys.executable, "-m", "trackjam", "validate", str(fifo)], capture_output=True, text=True, timeout=60)
     one_line_exit_2(r, "is a pipe or a socket")
+
+
+def test_an_abort_outside_a_command_is_one_line_and_exit_130(monkeypatch, capsys):
+    import typer
+
+    from trackjam import cli
+
+    def abort(*args, **kwargs):
+        raise typer.Abort()
+
+    monkeypatch.setattr(typer.Typer, "__call__", abort)
+    with pytest.raises(SystemExit) as exit_:
+        cli.app()
+    assert exit_.value.code == 130
+    assert capsys.readouterr().err.strip() == "trackjam: interrupted"

@@ -30,7 +30,7 @@ class _Cli(typer.Typer):
         except click_errors.ClickException as err:
             typer.echo(f"trackjam: error: {' '.join(err.format_message().split())}", err=True)
             sys.exit(err.exit_code)
-        except click_errors.Abort:
+        except (typer.Abort, KeyboardInterrupt):
             typer.echo("trackjam: interrupted", err=True)
             sys.exit(130)
         sys.exit(rv if isinstance(rv, int) else 0)
