@@ -34,7 +34,7 @@ from trackjam.viz.figure import (
 )
 
 CONE_SEGMENTS = 24
-MAX_FRAMES = 300  # the page and its memory stay bounded whatever the run's length
+MAX_FRAMES = 150  # the page and its memory stay bounded whatever the run's length
 TRAIL_FRAMES = 60  # a trail shows the last 60 shown steps (all of a run of up to 60 steps)
 JAM_COLOUR = "#e00000"
 
