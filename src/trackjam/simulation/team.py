@@ -274,10 +274,14 @@ def own_scan_raised(index: int, posteriors: list[Message]) -> bool:
     return own.estimate.existence > own.prior_existence
 
 
+SEARCH_CHUNK_S = 0.05  # exact checks its clock between chunks of about 20 ms: keep one chunk in hand
+
+
 def _remaining(budget_s: float | None, t0: float) -> float | None:
-    """What is left of the decision's time budget (``control.time_limit_s``) since ``t0``: the
-    tables a search needs are built on the same clock, so a budgeted step's whole decision stays
-    within it (a search always gets a millisecond to return a feasible plan)."""
+    """What is left of the decision's time budget (``control.time_limit_s``) since ``t0``, less
+    one search chunk: the tables a search needs are built on the same clock, so a budgeted
+    step's whole decision stays within it (a search always gets a millisecond to return a
+    feasible plan)."""
     if budget_s is None:
         return None
-    return max(budget_s - (time.perf_counter() - t0), 1e-3)
+    return max(budget_s - (time.perf_counter() - t0) - SEARCH_CHUNK_S, 1e-3)
