@@ -8,13 +8,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackjam.control.exact import enumerate_optimum, kernel_mean_xi, solve_exact
-from trackjam.control.grasp import grasp_search_reference, kernel_grasp_search, neighbour_lists, solve_grasp
+from trackjam.control.grasp import solve_grasp
 from trackjam.control.greedy import solve_greedy
 from trackjam.control.objective import at_least_probability, evaluate, mean_at_least
 from trackjam.control.problem import build_problem
 from trackjam.radio.antenna import detection_probability
 
-from control_instances import HIGH, LOW, small_displacements, tiny_displacements
+from control_instances import HIGH, LOW, assert_grasp_kernel_follows_its_twin, small_displacements, tiny_displacements
 
 
 def belief_problem(rng, antenna, n_agents=3, at_least=2, constraints=True, S=8, spread=8.0,
@@ -103,15 +103,7 @@ def test_grasp_kernel_follows_its_numpy_twin_on_the_belief(antenna):
     for trial in range(4):
         _, P = belief_problem(rng, antenna, 3, 1 + trial % 3, trial % 2 == 0, S=4,
                               displacements=small_displacements())
-        neigh, n_neigh = neighbour_lists(P, 4)
-        for me in range(3):
-            c = np.zeros(3, dtype=np.int64)
-            l = np.zeros(3, dtype=np.int64)
-            r1, r2 = np.random.default_rng(trial), np.random.default_rng(trial)
-            v = kernel_grasp_search(r1, me, *P.objective_tables(), P.gain, P.levels_w, P.delta_w, P.at_least,
-                                    P.constraints, P.n_cand, neigh, n_neigh, 200, 10, c, l)
-            v_ref, c_ref, l_ref = grasp_search_reference(r2, me, P, neigh, n_neigh, 200, 10, c * 0, l * 0)
-            assert v == v_ref and np.array_equal(c, c_ref) and np.array_equal(l, l_ref)
+        assert_grasp_kernel_follows_its_twin(P, trial, 200, 10)
 
 
 @settings(max_examples=15, deadline=None)

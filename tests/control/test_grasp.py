@@ -6,10 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackjam.control.exact import solve_exact
-from trackjam.control.grasp import grasp_search_reference, kernel_grasp_search, neighbour_lists, solve_grasp
+from trackjam.control.grasp import neighbour_lists, solve_grasp
 from trackjam.control.objective import evaluate
 
-from control_instances import random_problem, tiny_displacements
+from control_instances import assert_grasp_kernel_follows_its_twin, random_problem, tiny_displacements
 
 
 def rngs(seed, n):
@@ -20,16 +20,7 @@ def test_kernel_follows_numpy_reference(antenna):
     rng = np.random.default_rng(5)
     for trial in range(4):
         P = random_problem(rng, antenna, 3, 1 + trial % 3, constraints=trial % 2 == 0)
-        neigh, n_neigh = neighbour_lists(P, 4)
-        for me in range(3):
-            c = np.zeros(3, dtype=np.int64)
-            l = np.zeros(3, dtype=np.int64)
-            r1, r2 = np.random.default_rng(trial), np.random.default_rng(trial)
-            v = kernel_grasp_search(r1, me, *P.objective_tables(), P.gain, P.levels_w, P.delta_w, P.at_least,
-                                    P.constraints, P.n_cand, neigh, n_neigh, 200, 15, c, l)
-            v_ref, c_ref, l_ref = grasp_search_reference(r2, me, P, neigh, n_neigh, 200, 15, c * 0, l * 0)
-            assert v == v_ref and np.array_equal(c, c_ref) and np.array_equal(l, l_ref)
-            assert r1.random() == r2.random()  # both drew the same stream
+        assert_grasp_kernel_follows_its_twin(P, trial, 200, 15)
 
 
 def test_neighbours_are_the_nearest_other_displacements(antenna):

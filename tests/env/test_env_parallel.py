@@ -1,7 +1,6 @@
 """The PettingZoo environment: the official API test, seeding, the hover rule, termination,
 the reward against the logged geometry, rendering, and one clear error for every bad input."""
 
-import itertools
 
 import numpy as np
 import pytest
@@ -10,6 +9,8 @@ from pettingzoo.test import parallel_api_test
 from trackjam.config import load_scenario
 from trackjam.env import Planned, observation_layout, parallel_env, random_policy
 from trackjam.radio.antenna import detection_probability, interference_matrix
+
+from test_env_reward import xi_by_subsets
 
 FAST = ["steps=6", "filter.particles=400", "filter.birth_particles=100", "control.solver=exact"]
 
@@ -116,15 +117,6 @@ def test_a_move_out_of_the_area_hovers_and_says_so():
     assert np.allclose(env.sim.team.agents[0].position, [0.5, 50, 50])
     assert not info["agent_1"]["hovered"] and info["agent_1"]["move"] == inside
     assert np.allclose(env.sim.team.agents[1].position, np.array([20, 10, 10]) + D[inside])
-
-
-def xi_by_subsets(p, n):
-    """P(at least n of N detect), by summing over every subset of detecting agents."""
-    total = 0.0
-    for detect in itertools.product([0, 1], repeat=len(p)):
-        if sum(detect) >= n:
-            total += np.prod([pj if d else 1 - pj for pj, d in zip(p, detect)])
-    return total
 
 
 def test_reward_is_xi_at_the_truth_less_the_penalty_recomputed_from_the_geometry():

@@ -10,6 +10,7 @@ from trackjam.env.reward import reward_terms, team_reward, violation
 
 
 def xi_by_subsets(p, n):
+    """P(at least n of N detect), by summing over every subset of detecting agents."""
     total = 0.0
     for detect in itertools.product([0, 1], repeat=len(p)):
         if sum(detect) >= n:
