@@ -177,18 +177,18 @@ class Team:
         """Each working agent's plan over the teammates it heard from this step. Agents holding
         the same problem solve it together (deterministic solvers once; GRASP one search each)."""
         groups: dict[tuple, list[int]] = {}
-        problems = {}
+        hover: list[Proposal] = []
         for j in working:
             heard = self.fresh(j)
             rows = tuple(m.sender for m in heard)
             guards = tuple(sorted(k for k in self.known[j] if k not in rows))
             x_bar = x_bars[j]
-            if x_bar is None and not plan.fallback == "search":
+            if x_bar is None and plan.fallback != "search":
                 aims = np.array([m.aim for m in heard])
                 positions = np.array([m.position for m in heard])
                 levels = fallback_levels(positions, aims, ant, plan.constraints)
-                problems[("hover", j)] = Proposal(j, rows, "hover", None, np.zeros(len(rows), dtype=np.int64),
-                                                  np.asarray(levels, dtype=np.int64), np.nan)
+                hover.append(Proposal(j, rows, "hover", None, np.zeros(len(rows), dtype=np.int64),
+                                      np.asarray(levels, dtype=np.int64), np.nan))
                 continue
             aim = x_bar if x_bar is not None else search_aim(
                 [m.coasted for m in heard if m.coasted is not None], [m.estimate for m in heard],
@@ -196,7 +196,7 @@ class Team:
             key = (rows, guards, aim.tobytes(), tuple(m.position.tobytes() for m in heard),
                    tuple(self.known[j][k].position.tobytes() for k in guards), x_bar is None)
             groups.setdefault(key, []).append(j)
-        out = [p for p in problems.values()]
+        out = hover
         for key, members in groups.items():
             rows, guards, _, _, _, searching = key
             j0 = members[0]
