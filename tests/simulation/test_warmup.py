@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.simulation.warmup import WARM_STEPS, warm_up_scenario
+from trackjam.simulation.build import WARM_STEPS, warm_up_scenario
 
 # In a fresh process: count the compiled signatures of every numba kernel of trackjam after the
 # warm-up and after the real run. The run must add none (nothing compiled inside its timing),

@@ -21,7 +21,7 @@ from trackjam.viz.figure import (
     to_db,
 )
 from trackjam.viz.replay import replay_figure
-from trackjam.simulation.build import antenna_model
+from trackjam.simulation.build import antenna_model, figure_settings
 
 
 @pytest.fixture(scope="module")
@@ -79,8 +79,8 @@ def real_run():
 def test_the_figures_read_only_columns_a_real_run_logs_and_the_fake_run_copies_them(real_run, tmp_path):
     steps, agents, scenario = real_run
     steps, agents = _Reads(steps), _Reads(agents)
-    plot_run(steps, agents, scenario, tmp_path / "run.png")
-    replay_figure(steps, agents, scenario)
+    plot_run(steps, agents, figure_settings(scenario), tmp_path / "run.png")
+    replay_figure(steps, agents, figure_settings(scenario))
     assert steps.read - {"mode"} <= set(STEP_COLUMNS) <= set(steps)
     assert agents.read <= set(AGENT_COLUMNS) <= set(agents)
     fake_steps, fake_agents, _ = fake_run()
@@ -90,14 +90,15 @@ def test_the_figures_read_only_columns_a_real_run_logs_and_the_fake_run_copies_t
 
 
 def test_a_real_run_draws(real_run, tmp_path):
-    _assert_png_drawn(plot_run(*real_run, tmp_path / "run.png"))
+    steps, agents, scenario = real_run
+    _assert_png_drawn(plot_run(steps, agents, figure_settings(scenario), tmp_path / "run.png"))
 
 
 def test_panel_a_zooms_to_the_paths_inside_the_area(run):
     steps, agents, scenario = run
     T, N = scenario.steps, scenario.n_agents
     ax = Figure().add_subplot(projection="3d")
-    _panel_trajectories(ax, steps, agents, scenario, T, N)
+    _panel_trajectories(ax, steps, agents, figure_settings(scenario), T, N)
     u = np.stack([agents[c] for c in "xyz"], axis=1)
     lo, hi = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()]).T
     assert np.all(lo >= 0) and np.all(hi <= 100)
@@ -106,14 +107,14 @@ def test_panel_a_zooms_to_the_paths_inside_the_area(run):
 
 
 def test_path_box():
-    scenario = load_scenario("paper-fig3")
-    lo, hi = path_box(np.array([[10.0, 20.0, 30.0], [30.0, 25.0, 31.0], [np.nan] * 3]), scenario)
+    fs = figure_settings(load_scenario("paper-fig3"))
+    lo, hi = path_box(np.array([[10.0, 20.0, 30.0], [30.0, 25.0, 31.0], [np.nan] * 3]), fs)
     np.testing.assert_allclose(lo, [8.0, 18.0, 28.0])  # margin: max(10 % of 20 m, 2 m)
     np.testing.assert_allclose(hi, [32.0, 27.0, 33.0])
-    lo, hi = path_box(np.array([[1.0, 50.0, 99.0]]), scenario)
+    lo, hi = path_box(np.array([[1.0, 50.0, 99.0]]), fs)
     np.testing.assert_allclose(lo, [0.0, 48.0, 97.0])  # clipped to the area
     np.testing.assert_allclose(hi, [3.0, 52.0, 100.0])
-    lo, hi = path_box(np.full((2, 3), np.nan), scenario)
+    lo, hi = path_box(np.full((2, 3), np.nan), fs)
     np.testing.assert_allclose(hi - lo, [100.0] * 3)  # nothing to show: the area
 
 
@@ -125,7 +126,7 @@ def test_panel_d_leaves_a_gap_where_the_target_gets_no_power(run):
     w[1] = 0.0
     steps["target_received_w"] = w
     ax = Figure().add_subplot()
-    _panel_powers(ax, steps, agents, scenario, np.arange(1.0, T + 1), T, N)
+    _panel_powers(ax, steps, agents, figure_settings(scenario), np.arange(1.0, T + 1), T, N)
     line = ax.lines[0].get_ydata()
     assert np.isnan(line[w == 0]).all() and np.isfinite(line[w > 0]).all()
     np.testing.assert_allclose(line[w > 0], 10 * np.log10(w[w > 0]))
@@ -140,7 +141,7 @@ def test_recomputed_interference_matches_the_logged_total_and_jamming(run):
     """The pairwise matrix of Eq. (13) sums, per receiver, to what the loop logged."""
     steps, agents, scenario = run
     T, N = scenario.steps, scenario.n_agents
-    R = interference_per_step(agents, scenario)
+    R = interference_per_step(agents, figure_settings(scenario))
     assert R.shape == (T, N, N)
     assert np.all(R[:, np.arange(N), np.arange(N)] == 0)
     np.testing.assert_allclose(R.sum(axis=2), agent_table(agents, "interference_w", T, N), rtol=1e-12)
@@ -169,7 +170,7 @@ def test_agent_table_does_not_depend_on_row_order(run):
 
 def test_level_labels_and_decibels(run):
     scenario = run[2]
-    assert level_labels(scenario) == ["off", "-50 dBW", "-7 dBW", "0.5 dBW"]
+    assert level_labels(figure_settings(scenario)) == ["off", "-50 dBW", "-7 dBW", "0.5 dBW"]
     db = to_db(np.array([1e-4, 1.0, 0.0]))
     assert db[0] == pytest.approx(-40) and db[1] == 0 and np.isneginf(db[2])
 
@@ -185,11 +186,11 @@ def _assert_png_drawn(path, min_w=1200, min_h=800):
 
 def test_plot_run_writes_the_figure(run, tmp_path):
     steps, agents, scenario = run
-    out = plot_run(steps, agents, scenario, tmp_path / "run.png")
+    out = plot_run(steps, agents, figure_settings(scenario), tmp_path / "run.png")
     assert out == tmp_path / "run.png" and out.stat().st_size > 50_000
     _assert_png_drawn(out)
 
 
 def test_plot_run_with_everything_off_and_no_target(tmp_path):
     steps, agents, scenario = quiet_run()
-    _assert_png_drawn(plot_run(steps, agents, scenario, tmp_path / "run.png"))
+    _assert_png_drawn(plot_run(steps, agents, figure_settings(scenario), tmp_path / "run.png"))

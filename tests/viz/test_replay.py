@@ -16,7 +16,7 @@ from test_figure import quiet_run
 from trackjam.radio.antenna import inside_cone
 from trackjam.viz.figure import interference_per_step
 from trackjam.viz.replay import MAX_FRAMES, TRAIL_FRAMES, cone_mesh, replay_figure, shown_steps, write_replay
-from trackjam.simulation.build import antenna_model
+from trackjam.simulation.build import antenna_model, figure_settings
 
 ERROR_HOOK = """<script>
 function __trackjamReport(msg) {
@@ -81,7 +81,7 @@ def run():
 @pytest.fixture(scope="module")
 def replay_html(run, tmp_path_factory):
     steps, agents, scenario = run
-    return write_replay(steps, agents, scenario, tmp_path_factory.mktemp("replay") / "replay.html")
+    return write_replay(steps, agents, figure_settings(scenario), tmp_path_factory.mktemp("replay") / "replay.html")
 
 
 def _chromium(chromium, tmp_path, html, *args):
@@ -112,7 +112,7 @@ def test_cone_mesh_is_the_sensing_cone():
 
 def test_one_frame_per_step_with_title_and_cones(run):
     steps, agents, scenario = run
-    fig = replay_figure(steps, agents, scenario)
+    fig = replay_figure(steps, agents, figure_settings(scenario))
     T, N = scenario.steps, scenario.n_agents
     assert [f["name"] for f in fig["frames"]] == [str(t) for t in range(1, T + 1)]
     power = agents["power_w"].reshape(T, N)
@@ -129,9 +129,9 @@ def test_one_frame_per_step_with_title_and_cones(run):
 
 def test_jammed_agents_and_jamming_links_follow_the_logs(run):
     steps, agents, scenario = run
-    fig = replay_figure(steps, agents, scenario)
+    fig = replay_figure(steps, agents, figure_settings(scenario))
     T, N = scenario.steps, scenario.n_agents
-    R = interference_per_step(agents, scenario)
+    R = interference_per_step(agents, figure_settings(scenario))
     delta = antenna_model(scenario).delta_w
     jammed = agents["jammed"].reshape(T, N)
     x = agents["x"].reshape(T, N)
@@ -146,7 +146,7 @@ def test_jammed_agents_and_jamming_links_follow_the_logs(run):
 
 def test_quiet_run_replays_without_cones_or_target(tmp_path):
     steps, agents, scenario = quiet_run()
-    fig = replay_figure(steps, agents, scenario)
+    fig = replay_figure(steps, agents, figure_settings(scenario))
     assert len(fig["frames"]) == scenario.steps
     for frame in fig["frames"]:
         for tr in frame["data"]:
@@ -154,7 +154,7 @@ def test_quiet_run_replays_without_cones_or_target(tmp_path):
                 assert np.ptp(np.asarray(tr["x"], dtype=float)) == 0
             if tr["name"] in ("target (truth)", "target trail"):
                 assert all(v is None for v in tr["x"])
-    html = write_replay(steps, agents, scenario, tmp_path / "replay.html").read_text()
+    html = write_replay(steps, agents, figure_settings(scenario), tmp_path / "replay.html").read_text()
     assert html.count(CONE) == scenario.n_agents * (scenario.steps + 1)
 
 
@@ -185,7 +185,7 @@ def test_shown_steps_keep_the_first_and_last_and_spread_evenly():
 
 def test_a_long_run_is_decimated_and_says_so(tmp_path):
     steps, agents, scenario = fake_run(fake_scenario(1000))
-    fig = replay_figure(steps, agents, scenario)
+    fig = replay_figure(steps, agents, figure_settings(scenario))
     frames = fig["frames"]
     assert len(frames) == MAX_FRAMES
     assert frames[0]["name"] == "1" and frames[-1]["name"] == "1000"
@@ -198,10 +198,11 @@ def test_a_long_run_is_decimated_and_says_so(tmp_path):
         k = int(f["name"]) - 1
         if np.isfinite(truth[k, 0]):
             assert trail["x"][-1] == pytest.approx(truth[k, 0], abs=1e-3)
-    html = write_replay(steps, agents, scenario, tmp_path / "replay.html").read_text()
+    html = write_replay(steps, agents, figure_settings(scenario), tmp_path / "replay.html").read_text()
     # the page holds MAX_FRAMES frames and no more: its data grows with the frames, not the steps
     assert _figure_json(html).count(CONE) == scenario.n_agents * (MAX_FRAMES + 1)
-    short = write_replay(*fake_run(fake_scenario(300)), tmp_path / "short.html").read_text()
+    short_steps, short_agents, short_scenario = fake_run(fake_scenario(300))
+    short = write_replay(short_steps, short_agents, figure_settings(short_scenario), tmp_path / "short.html").read_text()
     assert len(_figure_json(html)) < 1.5 * len(_figure_json(short))
 
 

@@ -14,13 +14,12 @@ import time
 
 import numpy as np
 
-from trackjam.config import load_scenario
 from trackjam.control.exact import BranchAndBound, solve_exact
 from trackjam.control.grasp import solve_grasp
 from trackjam.control.problem import build_problem
 from trackjam.radio.antenna import AntennaModel
+from trackjam.simulation.build import antenna_model, load_scenario
 from trackjam.world.moves import displacement_set
-from trackjam.simulation.build import antenna_model
 
 #: displacement sets by their number of controls: (radial steps [m], N_phi, N_theta)
 CONTROL_CASES = {79: ([1.0, 3.0, 5.0], 8, 8), 175: ([1.0, 3.0, 5.0], 16, 8), 11: ([3.0], 4, 8)}

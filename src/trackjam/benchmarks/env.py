@@ -18,7 +18,7 @@ def bench_env(episodes: int = 3, preset: str = "paper-fig3", overrides: tuple[st
         from trackjam.env import parallel_env, random_policy
     except ImportError as err:
         return {"name": NAME, "skipped": str(err)}
-    from trackjam.config import load_scenario
+    from trackjam.simulation.build import load_scenario
 
     env = parallel_env(load_scenario(preset, list(overrides)))
     policy = random_policy(env)

@@ -6,9 +6,8 @@ import time
 
 import numpy as np
 
-from trackjam.config import load_scenario
 from trackjam.radio.measurement import clutter_bounds, h
-from trackjam.simulation.build import antenna_model, make_filter
+from trackjam.simulation.build import build, load_scenario
 
 
 def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000, birth_particles: int = 2_000) -> dict:
@@ -20,17 +19,17 @@ def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000,
     for a fast one: the particles it weighed in its last update (survivors, young component and
     births), its final existence and the distance of its final mean from the target."""
     n_meas = 4
-    s = load_scenario("paper-fig3", filter__particles=particles, filter__birth_particles=birth_particles)
+    c = build(load_scenario("paper-fig3", filter__particles=particles, filter__birth_particles=birth_particles))
     rng = np.random.default_rng(seed)
-    f = make_filter(s, rng)
-    x = np.array(s.target.initial, dtype=float)
+    f = c.make_filter(rng)
+    x = np.array(c.target.initial, dtype=float)
     x[3:] = 0.0  # a hovering target: its scans and the filter's motion model agree
     u = x[:3] - np.array([3.0, 3.0, 3.0])
-    level_w = float(s.antenna.levels_w[-1])
-    bounds = clutter_bounds(antenna_model(s).max_range)
+    level_w = float(c.antenna.levels_w[-1])
+    bounds = clutter_bounds(c.antenna.max_range)
 
     def scan() -> np.ndarray:
-        z = h(x, u) + rng.normal(0.0, 1.0, 3) * np.asarray(s.sensor.noise_std)
+        z = h(x, u) + rng.normal(0.0, 1.0, 3) * np.asarray(c.noise_std)
         return np.vstack([z, rng.uniform(bounds[:, 0], bounds[:, 1], size=(n_meas - 1, 3))])
 
     f.predict()
@@ -53,7 +52,7 @@ def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000,
         "birth_particles": birth_particles,
         "weighed": f.weighed,
         "measurements": n_meas,
-        "birth": s.filter.birth,
+        "birth": f.birth,
         "existence": float(est.existence),
         "error_m": float(np.linalg.norm(est.mean[:3] - x[:3])),
     }

@@ -9,24 +9,25 @@ import numpy as np
 
 def bench_run(solver: str, repeats: int = 3, steps: int | None = None) -> dict:
     """Wall time of `paper-fig3` with ``solver`` (compilation warmed up by a first short run)."""
-    from trackjam.config import load_scenario
+    from trackjam.simulation.build import build, load_scenario, with_seed
     from trackjam.simulation.loop import simulate
 
     overrides = [f"control.solver={solver}"]
     if steps is not None:
         overrides.append(f"steps={steps}")
     s = load_scenario("paper-fig3", overrides)
+    c = build(s)
     simulate(load_scenario("paper-fig3", overrides + ["steps=3"]))  # compile and cache
     totals, per_step, solve = [], [], []
     for r in range(repeats):
         t0 = time.perf_counter()
-        res = simulate(s.model_copy(update={"seed": s.seed + r}))
+        res = simulate(with_seed(s, c.seed + r))
         totals.append(time.perf_counter() - t0)
         per_step.append(float(np.mean(res.steps["step_s"])))
         solve.append(float(np.mean(res.steps["solve_s"])))
     return {
         "name": f"run paper-fig3 ({solver})",
-        "steps": s.steps,
+        "steps": c.steps,
         "repeats": repeats,
         "run_s_median": float(np.median(totals)),
         "step_ms_median": 1000 * float(np.median(per_step)),

@@ -3,16 +3,20 @@ extra: ``pip install "trackjam[env]"``)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 try:
     import gymnasium  # noqa: F401
     import pettingzoo  # noqa: F401
 except ImportError as err:  # pragma: no cover - depends on the installation
     raise ImportError(f"trackjam.env needs the env extra: pip install \"trackjam[env]\" ({err})") from None
 
-from trackjam.config import Scenario
 from trackjam.env.observation import observation_layout
 from trackjam.env.parallel import Planned, TrackjamParallelEnv
 from trackjam.env.policies import random_policy, rollout, solver_policy
+
+if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
+    from trackjam.config import Scenario
 
 __all__ = ["Planned", "TrackjamParallelEnv", "observation_layout", "parallel_env", "random_policy", "rollout",
            "solver_policy"]

@@ -12,17 +12,21 @@ or has flown out of the area (``target.walls: leave``), and is truncated after `
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from gymnasium import logger, spaces
 from pettingzoo import ParallelEnv
 
-from trackjam.config import Scenario
 from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
+from trackjam.simulation.build import figure_settings, with_seed
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
+
+if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
+    from trackjam.config import Scenario
 
 RENDER_MODES = ("rgb_array", "replay")
 
@@ -50,12 +54,12 @@ class TrackjamParallelEnv(ParallelEnv):
         self.render_mode = render_mode
         self.replay_path = replay_path
         self.sim = Simulation(scenario)
-        self.possible_agents = [f"agent_{j}" for j in range(scenario.n_agents)]
+        c = self.sim.c
+        self.possible_agents = [f"agent_{j}" for j in range(c.n_agents)]
         self.agents: list[str] = []
         self._index = {name: j for j, name in enumerate(self.possible_agents)}
-        c = self.sim.c
         n_moves, n_levels = len(c.displacements), len(c.antenna.levels_w)
-        lo, hi = observation_bounds(scenario.n_agents, c.low, c.high)
+        lo, hi = observation_bounds(c.n_agents, c.low, c.high)
         self._action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
         self._observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
         self._seed: int | None = None
@@ -85,11 +89,12 @@ class TrackjamParallelEnv(ParallelEnv):
         scenario's seed and each later one the previous seed + 1. ``options`` is accepted for
         the API and not read: the scenario says everything."""
         if seed is None:
-            seed = self.scenario.seed if self._seed is None else self._seed + 1
+            # before the first reset, self.sim runs on the scenario's own seed
+            seed = self.sim.c.seed if self._seed is None else self._seed + 1
         elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"reset(seed={seed!r}): the seed must be an integer >= 0")
         self._seed = int(seed)
-        self.sim = Simulation(self.scenario.model_copy(update={"seed": self._seed}))
+        self.sim = Simulation(with_seed(self.scenario, self._seed))
         self.agents = list(self.possible_agents)
         self._ended = None
         obs = self._observations(received=[[] for _ in self.possible_agents])
@@ -144,9 +149,9 @@ class TrackjamParallelEnv(ParallelEnv):
         return self.sim.step()
 
     def _outcome(self, record: StepRecord, hovered: np.ndarray):
-        sim, c, s = self.sim, self.sim.c, self.scenario
+        sim, c = self.sim, self.sim.c
         ag = record.agents
-        xi, v = reward_terms(ag["p_d"], ag["interference_w"], c.antenna.delta_w, s.control.at_least)
+        xi, v = reward_terms(ag["p_d"], ag["interference_w"], c.antenna.delta_w, c.plan.at_least)
         reward = team_reward(xi, v, self.jam_penalty)
         truth = sim.truth
         if truth.downed_at is not None:
@@ -158,7 +163,7 @@ class TrackjamParallelEnv(ParallelEnv):
         terminated = end is not None
         truncated = not terminated and sim.done
         if terminated or truncated:
-            self._ended = end or f"truncated after {s.steps} steps"
+            self._ended = end or f"truncated after {c.steps} steps"
         D = c.displacements
         moves = np.argmin(np.linalg.norm((ag["pos"] - ag["prev"])[:, None, :] - D[None], axis=2), axis=1)
         obs = self._observations(received=[_inbox(sim.team, j) for j in range(len(self.possible_agents))])
@@ -180,7 +185,7 @@ class TrackjamParallelEnv(ParallelEnv):
     def _observations(self, received: list[list]) -> dict:
         sim = self.sim
         n = len(self.possible_agents)
-        fraction = sim.t / self.scenario.steps
+        fraction = sim.t / sim.c.steps
         return {
             a: observe(j, sim.team.agents[j].position, sim.team.agents[j].filter.estimate(), received[j], n, fraction)
             for a, j in ((a, self._index[a]) for a in self.possible_agents)
@@ -201,7 +206,8 @@ class TrackjamParallelEnv(ParallelEnv):
             from trackjam.files import atomic_write
             from trackjam.viz.replay import write_replay
 
-            return atomic_write(self.replay_path, lambda p: write_replay(res.steps, res.agents, res.scenario, p))
+            return atomic_write(self.replay_path,
+                                lambda p: write_replay(res.steps, res.agents, figure_settings(res.scenario), p))
         import tempfile
         from pathlib import Path
 
@@ -210,7 +216,7 @@ class TrackjamParallelEnv(ParallelEnv):
         from trackjam.viz.figure import plot_run
 
         with tempfile.TemporaryDirectory() as tmp:
-            png = plot_run(res.steps, res.agents, res.scenario, Path(tmp) / "run.png")
+            png = plot_run(res.steps, res.agents, figure_settings(res.scenario), Path(tmp) / "run.png")
             img = matplotlib.image.imread(png)
         return np.round(img[..., :3] * 255).astype(np.uint8)
 

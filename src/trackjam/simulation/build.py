@@ -1,5 +1,11 @@
 """The one place a :class:`Scenario` is read for a run: it becomes the components and the small
-settings objects the step's stages take."""
+settings objects the step's stages take, and what the figures draw.
+
+Outside the configuration itself, this module, the command line and the experiments, no module
+imports :mod:`trackjam.config` but for type hints (``tests/test_layout.py``): a module that is
+handed a scenario (the engine, the environment, the output folder, the benchmarks) passes it on
+to a function here.
+``load_scenario`` is imported here for them, and for the package's public ``trackjam.load_scenario``."""
 
 from __future__ import annotations
 
@@ -10,12 +16,13 @@ from typing import Callable
 
 import numpy as np
 
-from trackjam.config import Scenario
+from trackjam.config import Scenario, load_scenario, scenario_to_yaml  # noqa: F401  (load_scenario: handed on)
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
+from trackjam.viz.settings import FigureSettings
 from trackjam.world.moves import displacement_set
 from trackjam.world.target import Response, TargetParams
 
@@ -160,4 +167,45 @@ def build(s: Scenario) -> Components:
         make_filter=partial(BernoulliFilter, filter_params(s), antenna_model(s)),
         cue=None if s.filter.cue is None else (s.filter.cue.existence, s.filter.cue.position_std,
                                                s.filter.cue.velocity_std),
+    )
+
+
+def figure_settings(s: Scenario) -> FigureSettings:
+    """What the run's figure and replay draw beside the logs."""
+    a, m = s.antenna, s.metrics
+    return FigureSettings(
+        name=s.name, solver=s.control.solver,
+        low=np.asarray(s.area.low, dtype=float), high=np.asarray(s.area.high, dtype=float),
+        antenna=antenna_model(s), opening_angle_deg=float(a.opening_angle_deg),
+        interference_limit_db=float(a.interference_limit_db), power_levels_db=tuple(a.power_levels_db),
+        ospa_order=float(m.ospa_order), ospa_cutoff=float(m.ospa_cutoff), gate=float(m.gate),
+    )
+
+
+def scenario_text(s: Scenario) -> str:
+    """The resolved scenario as a run's ``scenario.yaml`` holds it."""
+    return scenario_to_yaml(s)
+
+
+def with_seed(s: Scenario, seed: int) -> Scenario:
+    """The same scenario on another root seed."""
+    return s.model_copy(update={"seed": seed})
+
+
+WARM_STEPS = 2
+
+
+def warm_up_scenario(s: Scenario) -> Scenario:
+    """The scenario's tiny twin (:mod:`trackjam.simulation.warmup`): same agents, solver and
+    options, two steps, few particles, and a target present and detectable from the first step
+    so the update kernels run too."""
+    target = s.target.model_copy(update={"appears": 1, "disappears": None, "occlusions": [], "stochastic": None})
+    return s.model_copy(
+        update={
+            "steps": WARM_STEPS,
+            "target": target,
+            "filter": s.filter.model_copy(update={"particles": 40, "birth_particles": 20}),
+            "control": s.control.model_copy(update={"grasp": s.control.grasp.model_copy(
+                update={"samples": min(s.control.grasp.samples, 20), "iterations": 2})}),
+        }
     )

@@ -13,11 +13,14 @@ from __future__ import annotations
 import json
 import tempfile
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from trackjam.config import Scenario, scenario_to_yaml
 from trackjam.errors import ConfigError, OutputError
 from trackjam.files import atomic_write, is_temporary_of
+from trackjam.simulation.build import figure_settings, scenario_text
+
+if TYPE_CHECKING:
+    from trackjam.config import Scenario
 
 RUN_FILES = (
     "scenario.yaml",
@@ -39,7 +42,7 @@ def check_out_dir(out: Path, scenario: Scenario) -> None:
         entries = [p.name for p in out.iterdir() if not _leftover(p)]
         if entries:
             previous = out / "scenario.yaml"
-            same = previous.is_file() and previous.read_text() == scenario_to_yaml(scenario)
+            same = previous.is_file() and previous.read_text() == scenario_text(scenario)
             strangers = sorted(set(entries) - set(RUN_FILES))
             if not same or strangers:
                 what = "another scenario's run" if previous.is_file() else "other files"
@@ -92,7 +95,7 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
             ) from None
         written.append(out / name)
 
-    put("scenario.yaml", lambda p: p.write_text(scenario_to_yaml(result.scenario)))
+    put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
     put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
     put("steps.parquet", lambda p: write_parquet(result.steps, p))
     put("agents.parquet", lambda p: write_parquet(result.agents, p))
@@ -101,6 +104,7 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         from trackjam.viz.figure import plot_run
         from trackjam.viz.replay import write_replay
 
-        put("run.png", lambda p: plot_run(result.steps, result.agents, result.scenario, p))
-        put("replay.html", lambda p: write_replay(result.steps, result.agents, result.scenario, p))
+        fs = figure_settings(result.scenario)
+        put("run.png", lambda p: plot_run(result.steps, result.agents, fs, p))
+        put("replay.html", lambda p: write_replay(result.steps, result.agents, fs, p))
     return written

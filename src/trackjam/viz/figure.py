@@ -25,10 +25,9 @@ import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from trackjam.config import Scenario  # noqa: E402
 from trackjam.metrics.track_quality import CLASSES, step_classes  # noqa: E402
 from trackjam.radio.antenna import interference_matrix  # noqa: E402
-from trackjam.simulation.build import antenna_model
+from trackjam.viz.settings import FigureSettings  # noqa: E402
 
 Columns = Mapping[str, np.ndarray]
 
@@ -78,13 +77,13 @@ def run_shape(steps: Columns, agents: Columns) -> tuple[int, int]:
     return len(np.asarray(steps["t"])), int(np.max(agents["agent"])) + 1
 
 
-def interference_per_step(agents: Columns, scenario: Scenario) -> np.ndarray:
+def interference_per_step(agents: Columns, fs: FigureSettings) -> np.ndarray:
     """(T, N, N) ``R[t-1, i, j]``: power agent i receives from agent j at step t [W] (Eq. 13's terms).
 
     Recomputed with :func:`interference_matrix` from the logged positions after the move, the
     points the antennas aimed at and the transmit powers, so it is what the loop measured.
     """
-    ant = antenna_model(scenario)
+    ant = fs.antenna
     T = int(np.max(agents["t"]))
     N = int(np.max(agents["agent"])) + 1
     u = agent_positions(agents, T, N)
@@ -95,9 +94,9 @@ def interference_per_step(agents: Columns, scenario: Scenario) -> np.ndarray:
     return np.stack([interference_matrix(u[k], point[k], level_w[k], ant) for k in range(T)])
 
 
-def level_labels(scenario: Scenario) -> list[str]:
+def level_labels(fs: FigureSettings) -> list[str]:
     """Tick labels of the transmit levels L: "off" or "<l> dBW"."""
-    return ["off" if p == "off" else f"{float(p):g} dBW" for p in scenario.antenna.power_levels_db]
+    return ["off" if p == "off" else f"{float(p):g} dBW" for p in fs.power_levels_db]
 
 
 def occluded_steps(steps: Columns) -> np.ndarray:
@@ -117,10 +116,11 @@ def to_db(w: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 
 
-def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Path) -> Path:
+def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Path) -> Path:
     """Draw panels (a)-(f) of the paper's Fig. 3 for one run and save them as a PNG at ``path``.
 
-    ``steps`` and ``agents`` are the run's logs (column name -> 1-D array). Returns the path.
+    ``steps`` and ``agents`` are the run's logs (column name -> 1-D array), ``fs`` what the run's
+    scenario says beside them (:func:`trackjam.simulation.build.figure_settings`). Returns the path.
     """
     path = Path(path)
     T, N = run_shape(steps, agents)
@@ -133,13 +133,13 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
     axes += [fig.add_subplot(right[k], sharex=axes[0]) for k in range(1, 6)]
     ax_level, ax_jam, ax_power, ax_exist, ax_ospa, ax_quality = axes
 
-    _panel_trajectories(ax3d, steps, agents, scenario, T, N)
-    _panel_levels(ax_level, agents, scenario, t, T, N)
-    _panel_jamming(ax_jam, agents, scenario, T, N)
-    _panel_powers(ax_power, steps, agents, scenario, t, T, N)
+    _panel_trajectories(ax3d, steps, agents, fs, T, N)
+    _panel_levels(ax_level, agents, fs, t, T, N)
+    _panel_jamming(ax_jam, agents, fs, T, N)
+    _panel_powers(ax_power, steps, agents, fs, t, T, N)
     _panel_existence(ax_exist, steps, agents, t, T, N)
-    _panel_ospa(ax_ospa, steps, scenario, t)
-    _panel_quality(ax_quality, steps, scenario, t)
+    _panel_ospa(ax_ospa, steps, fs, t)
+    _panel_quality(ax_quality, steps, fs, t)
 
     occ = occluded_steps(steps)
     for ax in axes:
@@ -155,7 +155,7 @@ def plot_run(steps: Columns, agents: Columns, scenario: Scenario, path: str | Pa
     if len(occ):
         handles.append(Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded"))
     ax_level.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
-    fig.suptitle(f"trackjam run: {scenario.name}  ({N} agents, {T} steps, solver {scenario.control.solver})")
+    fig.suptitle(f"trackjam run: {fs.name}  ({N} agents, {T} steps, solver {fs.solver})")
     fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
     return path
@@ -165,10 +165,10 @@ PATH_MARGIN = 0.1  # of the paths' extent, at least MIN_MARGIN_M, around the box
 MIN_MARGIN_M = 2.0
 
 
-def path_box(points: np.ndarray, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+def path_box(points: np.ndarray, fs: FigureSettings) -> tuple[np.ndarray, np.ndarray]:
     """Corners of the box panel (a) shows: the finite ``points`` with a margin, inside the area
     (the whole area when there is nothing to show)."""
-    area_lo, area_hi = np.asarray(scenario.area.low, float), np.asarray(scenario.area.high, float)
+    area_lo, area_hi = fs.low, fs.high
     p = points[np.isfinite(points).all(axis=1)]
     if not len(p):
         return area_lo, area_hi
@@ -177,7 +177,7 @@ def path_box(points: np.ndarray, scenario: Scenario) -> tuple[np.ndarray, np.nda
     return np.maximum(lo - margin, area_lo), np.minimum(hi + margin, area_hi)
 
 
-def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
+def _panel_trajectories(ax, steps, agents, fs, T, N) -> None:
     """(a) truth (black), fused estimate (cyan), agents u_t (coloured); o = start, ^ = end."""
     truth = steps_xyz(steps, "truth_")
     est = steps_xyz(steps, "est_")
@@ -194,7 +194,7 @@ def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
         ax.plot(*path.T, color=c, lw=1.6, label=f"agent {j + 1}")
         ax.scatter(*path[0], color=c, marker="o", s=60, edgecolor="k", depthshade=False)
         ax.scatter(*path[-1], color=c, marker="^", s=60, edgecolor="k", depthshade=False)
-    lo, hi = path_box(np.vstack([truth, est, u0, u.reshape(-1, 3)]), scenario)
+    lo, hi = path_box(np.vstack([truth, est, u0, u.reshape(-1, 3)]), fs)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
@@ -206,25 +206,25 @@ def _panel_trajectories(ax, steps, agents, scenario, T, N) -> None:
     ax.legend(loc="upper left", fontsize=8)
 
 
-def _panel_levels(ax, agents, scenario, t, T, N) -> None:
+def _panel_levels(ax, agents, fs, t, T, N) -> None:
     """(b) transmit level l_t^j per agent, as an index into L."""
     idx = agent_table(agents, "level_index", T, N)
     offsets = (np.arange(N) - (N - 1) / 2) * min(0.08, 0.4 / max(N, 1))
     for j in range(N):
         ax.step(t, idx[:, j] + offsets[j], where="mid", color=agent_colour(j), lw=1.6,
                 marker="o", ms=3.5, label=f"agent {j + 1}")
-    labels = level_labels(scenario)
+    labels = level_labels(fs)
     ax.set_yticks(range(len(labels)), labels)
     ax.set_ylim(-0.5, len(labels) - 0.5)
     ax.set_ylabel("transmit level")
     ax.set_title("(b) transmit power level per agent", loc="left", fontsize=10)
 
 
-def _panel_jamming(ax, agents, scenario, T, N) -> None:
+def _panel_jamming(ax, agents, fs, T, N) -> None:
     """(c) one row per receiver i: a marker in sender j's colour at steps where j alone jams i
     (R_ij >= delta), a black ring where only the total sum_j R_ij >= delta does."""
-    delta = antenna_model(scenario).delta_w
-    R = interference_per_step(agents, scenario)
+    delta = fs.antenna.delta_w
+    R = interference_per_step(agents, fs)
     total = R.sum(axis=2)
     spread = min(0.3, 0.6 / max(N - 1, 1))
     for i in range(N):
@@ -248,11 +248,11 @@ def _panel_jamming(ax, agents, scenario, T, N) -> None:
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
 
 
-def _panel_powers(ax, steps, agents, scenario, t, T, N) -> None:
+def _panel_powers(ax, steps, agents, fs, t, T, N) -> None:
     """(d) power received at the target (Eq. 10, summed over agents) and interference at each
     agent, in dBW. 0 W has no decibel value: the target's line has a gap there, and a row of
     markers under the axis' finite range ("0 W") says which steps had no power."""
-    delta_db = scenario.antenna.interference_limit_db
+    delta_db = fs.interference_limit_db
     target_db = to_db(steps["target_received_w"])
     interf_db = to_db(agent_table(agents, "interference_w", T, N))
     finite = np.concatenate([target_db[np.isfinite(target_db)], interf_db[np.isfinite(interf_db)], [delta_db]])
@@ -297,9 +297,9 @@ def _panel_existence(ax, steps, agents, t, T, N) -> None:
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
 
 
-def _panel_ospa(ax, steps, scenario, t) -> None:
+def _panel_ospa(ax, steps, fs, t) -> None:
     """(f) OSPA(p, c) between the truth set and the reported estimate set."""
-    p, c = scenario.metrics.ospa_order, scenario.metrics.ospa_cutoff
+    p, c = fs.ospa_order, fs.ospa_cutoff
     ax.plot(t, np.asarray(steps["ospa"], dtype=float), color="k", lw=1.6, marker=".", label="OSPA")
     ax.axhline(c, color="0.4", ls=":", lw=1, label=f"cut-off c = {c:g} m")
     ax.set_ylim(-0.03 * c, 1.1 * c)
@@ -308,12 +308,12 @@ def _panel_ospa(ax, steps, scenario, t) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
 
 
-def _panel_quality(ax, steps, scenario, t) -> None:
+def _panel_quality(ax, steps, fs, t) -> None:
     """Track quality judged by the truth, one coloured cell per step (README, "Track quality
     judged by the truth"): held (confirmed, within metrics.gate of the truth), false track
     (confirmed, further off), missed (detectable, not confirmed), phantom (confirmed while the
     target is hidden or absent), silent (no report then)."""
-    gate = scenario.metrics.gate
+    gate = fs.gate
     names = np.asarray(CLASSES)[step_classes(steps, gate)]
     for k, name in zip(t, names):
         ax.axvspan(k - 0.5, k + 0.5, color=QUALITY_COLOURS[name], lw=0, zorder=1)

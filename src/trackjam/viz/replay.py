@@ -17,9 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trackjam.config import Scenario
 from trackjam.radio.antenna import AntennaModel, axis_of
-from trackjam.simulation.build import antenna_model
 from trackjam.viz.figure import (
     ESTIMATE_COLOUR,
     TRUTH_COLOUR,
@@ -32,6 +30,7 @@ from trackjam.viz.figure import (
     run_shape,
     steps_xyz,
 )
+from trackjam.viz.settings import FigureSettings
 
 CONE_SEGMENTS = 24
 MAX_FRAMES = 150  # the page and its memory stay bounded whatever the run's length
@@ -162,22 +161,22 @@ def _title(steps: Columns, k: int) -> str:
     return title
 
 
-def replay_figure(steps: Columns, agents: Columns, scenario: Scenario, max_frames: int = MAX_FRAMES) -> dict:
+def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frames: int = MAX_FRAMES) -> dict:
     """The plotly figure of the replay, as plain data (``data``, ``layout``, ``frames``): one
     frame per shown step, slider and play/pause buttons."""
     T, N = run_shape(steps, agents)
     shown = shown_steps(T, max_frames)
     truth = steps_xyz(steps, "truth_")
     est = steps_xyz(steps, "est_")
-    ant = antenna_model(scenario)
+    ant = fs.antenna
     u = agent_positions(agents, T, N)
     u_path = np.concatenate([agent_positions(agents, T, N, "prev_")[:1], u], axis=0)
     point = agent_positions(agents, T, N, "point_")
     idx = agent_table(agents, "level_index", T, N)
     power = np.nan_to_num(agent_table(agents, "power_w", T, N))
     jammed = agent_table(agents, "jammed", T, N) > 0.5
-    R = interference_per_step(agents, scenario)
-    labels = level_labels(scenario)
+    R = interference_per_step(agents, fs)
+    labels = level_labels(fs)
 
     every = "" if len(shown) == T else f"   |   {len(shown)} of {T} steps shown"
     frames = [
@@ -189,7 +188,7 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario, max_frame
         )
         for f, k in enumerate(shown)
     ]
-    lo, hi = np.asarray(scenario.area.low, dtype=float), np.asarray(scenario.area.high, dtype=float)
+    lo, hi = fs.low, fs.high
     span = hi - lo
     ratio = span / span.max()
     play = dict(frame=dict(duration=600, redraw=True), transition=dict(duration=0),
@@ -226,11 +225,11 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario, max_frame
             steps=slider_steps,
         )],
         annotations=[dict(
-            text=(f"{scenario.name}: {N} agents, {T} steps"
+            text=(f"{fs.name}: {N} agents, {T} steps"
                   + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
-                  + f", solver {scenario.control.solver}; "
-                  f"cones: h_a = {ant.height:g} m, theta_a = {scenario.antenna.opening_angle_deg:g} deg; "
-                  f"delta = {scenario.antenna.interference_limit_db:g} dBW"),
+                  + f", solver {fs.solver}; "
+                  f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
+                  f"delta = {fs.interference_limit_db:g} dBW"),
             x=0.99, y=0.99, xref="paper", yref="paper", xanchor="right", showarrow=False,
             font=dict(size=11, color="#555"),
         )],
@@ -241,12 +240,12 @@ def replay_figure(steps: Columns, agents: Columns, scenario: Scenario, max_frame
     return dict(data=frames[0]["data"], layout=layout, frames=frames)
 
 
-def write_replay(steps: Columns, agents: Columns, scenario: Scenario, path: str | Path) -> Path:
+def write_replay(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Path) -> Path:
     """Write the replay of one run as a self-contained HTML file at ``path``; returns the path."""
     path = Path(path)
     import plotly.io as pio
 
-    fig = replay_figure(steps, agents, scenario)
+    fig = replay_figure(steps, agents, fs)
     # validate=False: the traces are plain data, built to plotly's schema (the browser test loads them)
     html = pio.to_html(fig, validate=False, include_plotlyjs=True, include_mathjax=False, full_html=True,
                        auto_play=False, config=dict(displaylogo=False, responsive=True),
