@@ -77,6 +77,10 @@ def test_overrides_are_dotted_and_validated():
         ("agents.initial=[[200, 0, 0], [1, 1, 1], [2, 2, 2]]", "agents.initial[0]", "outside the area"),
         ("sensor.clutter_rate=-1", "sensor.clutter_rate", "greater than or equal to 0"),
         ("control.solver=magic", "control.solver", "greedy"),
+        ("filter.visibility.hide=1.5", "filter.visibility.hide", "less than or equal to 1"),
+        ("filter.visibility={hide: 0.1}", "filter.visibility.reappear", "required"),
+        ("fusion.report_spread=0", "fusion.report_spread", "greater than 0"),
+        ("fusion.share=gossip", "fusion.share", "posteriors"),
     ],
 )
 def test_bad_values_give_one_line_naming_the_key(override, key, words):

@@ -113,11 +113,13 @@ def test_always_reseeding_redraws_every_searching_agent_from_the_coasted_track()
         assert not np.array_equal(a.filter.particles, X)
 
 
-def test_the_pursuit_preset_is_paper_fig3_with_aim_pointing_a_half_step_lead_and_the_exact_solver():
+def test_the_pursuit_preset_is_paper_fig3_with_aim_pointing_and_the_options_that_held_best():
     a = load_scenario("pursuit").model_dump(exclude={"name"})
     b = load_scenario("paper-fig3").model_dump(exclude={"name"})
     diff = {(sec, k): a[sec][k] for sec in a if isinstance(a[sec], dict) for k in a[sec] if a[sec][k] != b[sec][k]}
-    assert diff == {("antenna", "pointing"): "aim", ("control", "lead"): 0.5, ("control", "solver"): "exact"}
+    assert diff == {("antenna", "pointing"): "aim", ("control", "lead"): 0.5, ("control", "solver"): "exact",
+                    ("filter", "visibility"): {"hide": 0.05, "reappear": 0.25}, ("fusion", "share"): "scans",
+                    ("fusion", "report_spread"): 8.0}
 
 
 

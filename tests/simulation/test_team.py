@@ -144,3 +144,36 @@ def test_an_exact_search_out_of_time_logs_its_certified_gap():
     stopped = ~r.steps["optimal"] & (r.steps["mode"] == "track")
     assert stopped.any()
     assert np.all(r.steps["gap"][stopped] > 0)
+
+
+@pytest.mark.parametrize("loss, others", [(0.0, 2), (1.0, 0)])
+def test_sharing_scans_updates_each_filter_with_every_scan_it_received(monkeypatch, loss, others):
+    """fusion.share: scans: each agent's update gets its teammates' scans of the step (none when
+    every message is lost), and the team's report is its lowest-index agent's own estimate."""
+    from trackjam.estimation.bernoulli import BernoulliFilter
+
+    seen = []
+    update = BernoulliFilter.update
+
+    def spy(self, Z, u, aim, level_w, others=()):
+        seen.append(len(others))
+        return update(self, Z, u, aim, level_w, others)
+
+    monkeypatch.setattr(BernoulliFilter, "update", spy)
+    r = run("fusion.share=scans", f"comms.loss={loss}")
+    assert seen == [others] * (8 * 3)
+    ex = by_agent(r, "existence")
+    np.testing.assert_array_equal(r.steps["existence"], ex[:, 0])
+
+
+def test_a_spread_out_track_is_not_reported():
+    """fusion.report_spread: a track whose fused position spread exceeds the bound is not
+    reported; a bound no track reaches changes nothing."""
+    base = run()
+    loose = run("fusion.report_spread=100000")
+    tight = run("fusion.report_spread=0.001")
+    for a in "xyz":
+        np.testing.assert_array_equal(loose.steps[f"est_{a}"], base.steps[f"est_{a}"])
+        assert np.all(np.isnan(tight.steps[f"est_{a}"]))
+    assert np.any(np.isfinite(base.steps["est_x"]))
+    np.testing.assert_array_equal(tight.steps["existence"], base.steps["existence"])

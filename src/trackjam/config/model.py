@@ -266,6 +266,14 @@ class Cue(_Model):
     )
 
 
+class Visibility(_Model):
+    """A hidden-target mode of the filter (ours): the target can be out of sight of every sensor
+    (behind an obstacle) while it exists, a two-state Markov chain per step."""
+
+    hide: Prob = Field(description="probability per step that a visible target becomes hidden, in [0, 1]")
+    reappear: Prob = Field(description="probability per step that a hidden target becomes visible again, in [0, 1]")
+
+
 class Filter(_Model):
     """Each agent's Bernoulli particle filter (Section V-A)."""
 
@@ -302,6 +310,11 @@ class Filter(_Model):
         "Eq. (1) unbounded, as printed",
     )
     cue: Cue | None = Field(None, description="initial prior around agents.initial_aim (ours); null: e_0 = 0, nothing known")
+    visibility: Visibility | None = Field(
+        None,
+        description="hidden-target mode (ours): {hide, reappear} per-step probabilities; misses are then explained by "
+        "a target out of sight as well as by one that died; null: the paper's filter, every existing target visible",
+    )
 
 
 class Fusion(_Model):
@@ -317,6 +330,18 @@ class Fusion(_Model):
         "always",
         description="while searching (`control.fallback: search`), an agent's particles are redrawn from the coasted "
         "track `always`, or (ours) not at a step its own scan raised its existence (e_t > e_{t|t-1}): `evidence`",
+    )
+    share: Literal["posteriors", "scans"] = Field(
+        "posteriors",
+        description="what agents exchange to fuse: `posteriors` (the paper: covariance intersection of their "
+        "estimates) or `scans` (ours: every agent updates its own particles with every scan it received, "
+        "a centralised filter on each agent; no Gaussian collapse)",
+    )
+    report_spread: Length | None = Field(
+        None,
+        description="the team reports a confirmed track only while its fused position spread, sqrt(trace(C_pos) / 3), "
+        f"is at most this [m] (ours; a belief that has spread out is not a located target), in (0, {MAX_LENGTH:g}]; "
+        "null: whenever e > 0.5 (the paper)",
     )
 
 

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 from scipy.special import expit
@@ -142,6 +143,27 @@ def posterior_existence(e_pred: float, log_one_minus_q: float) -> float:
     return float(expit(math.log(e_pred) - math.log1p(-e_pred) + log_one_minus_q))
 
 
+def mix_visibility(log_L: np.ndarray, nu: float) -> np.ndarray:
+    """Per-particle update factors with a hidden-target mode (ours): a visible target (P = nu)
+    updates by L_i, a hidden one leaves every measurement to clutter (factor 1), so
+    L'_i = nu L_i + (1 - nu)."""
+    if nu >= 1.0:
+        return log_L
+    if nu <= 0.0:
+        return np.zeros_like(log_L)
+    return np.logaddexp(math.log(nu) + log_L, math.log1p(-nu))
+
+
+def posterior_visibility(nu: float, log_V: float) -> float:
+    """P(visible) after a scan with visible-target evidence V = sum_i w_i L_i:
+    nu V / (nu V + 1 - nu)."""
+    if nu <= 0.0 or nu >= 1.0:
+        return float(nu)
+    if log_V == -np.inf:
+        return 0.0
+    return float(expit(math.log(nu) - math.log1p(-nu) + log_V))
+
+
 def bernoulli_update(e_pred, X, log_w, Z, u, aim, level_w, ant: AntennaModel, noise_std, log_lambda_c):
     """The update of Section V-A on a weighted particle set (``log_w`` normalised).
 
@@ -175,6 +197,7 @@ class FilterParams:
     high: np.ndarray
     noise_std: np.ndarray  # (3,) Sigma_w diagonal as standard deviations
     clutter_rate: float  # lambda_c
+    visibility: tuple[float, float] | None = None  # (hide, reappear) per step; None: always visible (the paper)
 
 
 class BernoulliFilter:
@@ -221,6 +244,10 @@ class BernoulliFilter:
         # uniform births' count, and the survivors keep the rest of the n particles
         self.n_young = max((self.n_b - self.n_mb) // 2, 1)
 
+        self.visibility = None if f.visibility is None else (float(f.visibility[0]), float(f.visibility[1]))
+        self.nu = 1.0  # P(visible | the target exists), after the last update
+        self.nu_pred = 1.0  # the same predicted to the current step
+        self.log_evidence = 0.0  # log sum_i w_i L_i of the last update: its evidence were the target visible
         self.e = float(np.clip(existence, 0.0, 1.0))
         self._X = self.b.draw(self.rng, self.n)
         self._log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
@@ -268,6 +295,9 @@ class BernoulliFilter:
             m_y, C_y = weighted_moments(self._young.X, np.exp(self._young.log_w))
             parts.append((self._w_surv * M, PHI @ m_y, PHI @ C_y @ PHI.T + self.accel_var * GG))
         self._e_pred = e_pred
+        if self.visibility is not None:
+            hide, reappear = self.visibility
+            self.nu_pred = (1.0 - hide) * self.nu + reappear * (1.0 - self.nu)
         self._m_birth = None
         if self.n_mb:
             self._m_birth = draw_measurement_birth(self.rng, self.b, self._prev_G, self.n_mb, self.v_m)
@@ -296,7 +326,8 @@ class BernoulliFilter:
         self._move(X)
         return X, young.log_w
 
-    def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float) -> Estimate:
+    def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float,
+               others: Sequence[Scan] = ()) -> Estimate:
         """Update of Section V-A with scan ``Z`` (m, 3) taken from ``u`` with the antenna aimed at
         ``aim`` and transmitting ``level_w`` watts; then systematic resampling to ``n`` particles.
         Runs ``predict()`` first if it was not called since the last update."""
@@ -323,7 +354,15 @@ class BernoulliFilter:
         log_w = np.concatenate([lw for _, lw in blocks])
         self.weighed = len(X)
         log_L = scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
-        log_joint = log_w + log_L
+        for other in others:  # teammates' scans, independent of this one given the target
+            log_L = log_L + other.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+        log_V = float(kernel_logsumexp(log_w + log_L))
+        self.log_evidence = log_V
+        log_Lm = log_L
+        if self.visibility is not None:
+            log_Lm = mix_visibility(log_L, self.nu_pred)
+            self.nu = posterior_visibility(self.nu_pred, log_V)
+        log_joint = log_w + log_Lm
         log_A = float(kernel_logsumexp(log_joint))
         e = posterior_existence(e_pred, log_A)
         log_post = log_w if log_A == -np.inf else log_joint - log_A
@@ -381,11 +420,14 @@ class BernoulliFilter:
         """The latest estimate: predicted after ``predict()``, posterior after ``update()``."""
         return self._last
 
-    def reset_to(self, existence: float, mean: np.ndarray | None = None, cov: np.ndarray | None = None) -> None:
-        """Fusion feedback (end of Section V-A), called after ``update()``: set the existence;
-        when a fused Gaussian is given, redraw the particles from N(mean, cov) (equal weights;
-        a singular covariance is allowed)."""
+    def reset_to(self, existence: float, mean: np.ndarray | None = None, cov: np.ndarray | None = None,
+                 visible: float | None = None) -> None:
+        """Fusion feedback (end of Section V-A), called after ``update()``: set the existence
+        (and, with a hidden-target mode, P(visible)); when a fused Gaussian is given, redraw the
+        particles from N(mean, cov) (equal weights; a singular covariance is allowed)."""
         self.e = float(np.clip(existence, 0.0, 1.0))
+        if visible is not None and self.visibility is not None:
+            self.nu = float(np.clip(visible, 0.0, 1.0))
         if mean is not None and cov is not None:
             mean = np.asarray(mean, dtype=float)
             cov = np.asarray(cov, dtype=float)

@@ -27,6 +27,7 @@ class FusedEstimate:
     mean: np.ndarray | None  # (6,) fused state, None when no agent has e^j > 0.5
     cov: np.ndarray | None  # (6, 6)
     weights: np.ndarray  # omega_j per input estimate (0 for agents not in N~)
+    visible: float | None = None  # P(visible | exists) with a hidden-target mode (ours), else None
 
 
 def _inverse(C: np.ndarray) -> np.ndarray:
@@ -112,18 +113,48 @@ def fused_existence(posterior, predicted=None, rule: str = "mean") -> float:
     return float(1.0 / (1.0 + np.exp(-np.clip(log_odds, -700, 700))))
 
 
-def fuse(estimates: list[Estimate], predicted: list[float] | None = None, rule: str = "mean") -> FusedEstimate:
+def fused_visible(predicted, log_evidence, visibility) -> tuple[float, float]:
+    """Evidence fusion with a hidden-target mode (ours): the target is hidden from every agent or
+    from none, so the agents' scans are independent given the target *and* its visibility. With
+    nu the mean predicted P(visible) and V_j = sum_i w_i L_i agent j's evidence were the target
+    visible, the team's likelihood ratio is nu prod_j V_j + (1 - nu): agreeing misses count
+    several times against a visible target, but once against a hidden one. Returns (e_hat,
+    P(visible | exists))."""
+    nu = float(np.mean(visibility))
+    log_V = float(np.sum(log_evidence))
+    prior = np.log(_odds(np.mean(np.asarray(predicted, dtype=float))))
+    if nu >= 1.0:
+        log_ratio, visible = log_V, 1.0
+    elif nu <= 0.0:
+        log_ratio, visible = 0.0, 0.0
+    else:
+        log_ratio = float(np.logaddexp(np.log(nu) + log_V, np.log1p(-nu)))
+        visible = float(np.exp(np.log(nu) + log_V - log_ratio))
+    log_odds = prior + log_ratio
+    return float(1.0 / (1.0 + np.exp(-np.clip(log_odds, -700, 700)))), visible
+
+
+def fuse(estimates: list[Estimate], predicted: list[float] | None = None, rule: str = "mean",
+         log_evidence: list[float] | None = None, visibility: list[float] | None = None) -> FusedEstimate:
     """The team's estimate: fused existence (:func:`fused_existence`), and the CI of the agents
-    with e^j > 0.5. ``predicted`` holds the agents' e^j_{t|t-1}, needed by rule ``evidence``."""
+    with e^j > 0.5. ``predicted`` holds the agents' e^j_{t|t-1}, needed by rule ``evidence``;
+    with a hidden-target mode ``log_evidence`` and ``visibility`` hold each agent's log V_j and
+    predicted P(visible) (:func:`fused_visible`)."""
     if not estimates:
         raise ValueError("fuse needs at least one estimate")
-    existence = fused_existence([est.existence for est in estimates], predicted, rule)
+    visible = None
+    if visibility is not None and rule == "evidence":
+        existence, visible = fused_visible(predicted, log_evidence, visibility)
+    else:
+        existence = fused_existence([est.existence for est in estimates], predicted, rule)
+        if visibility is not None:
+            visible = float(np.mean(visibility))
     weights = np.zeros(len(estimates))
     sensing = [j for j, est in enumerate(estimates) if est.existence > CONFIRM]
     if not sensing:
-        return FusedEstimate(existence, None, None, weights)
+        return FusedEstimate(existence, None, None, weights, visible)
     mean, cov, omega = covariance_intersection(
         [estimates[j].mean for j in sensing], [estimates[j].cov for j in sensing]
     )
     weights[sensing] = omega
-    return FusedEstimate(existence, mean, cov, weights)
+    return FusedEstimate(existence, mean, cov, weights, visible)

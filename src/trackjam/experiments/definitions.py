@@ -175,6 +175,11 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("aim + lead 0.5 step", {"antenna.pointing": "aim", "control.lead": 0.5}),
     ("aim + intercept horizon 5", {"antenna.pointing": "aim", "control.horizon": 5}),
     ("aim + search reseed on evidence", {"antenna.pointing": "aim", "fusion.search_reseed": "evidence"}),
+    ("aim + scans shared", {"antenna.pointing": "aim", "fusion.share": "scans"}),
+    ("aim + hidden-target mode", {"antenna.pointing": "aim", "filter.visibility": {"hide": 0.05, "reappear": 0.25}}),
+    ("aim + report spread <= 8 m", {"antenna.pointing": "aim", "fusion.report_spread": 8.0}),
+    ("aim + scans shared + hidden-target mode", {"antenna.pointing": "aim", "fusion.share": "scans",
+                                                  "filter.visibility": {"hide": 0.05, "reappear": 0.25}}),
     ("preset pursuit", preset_settings("pursuit")),
 )
 

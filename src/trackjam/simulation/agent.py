@@ -35,6 +35,9 @@ class Message:
     prior_existence: float | None = None
     belief: np.ndarray | None = None  # (S, 3) positions drawn from its predicted density (plan_over: belief)
     plan: object | None = None  # a trackjam.control.distributed.Proposal
+    log_evidence: float | None = None  # posterior: log sum_i w_i L_i, its scan's evidence were the target visible
+    visibility: float | None = None  # posterior: the predicted P(visible) it started from (hidden-target mode)
+    scan: object | None = None  # scan: a trackjam.estimation.bernoulli.Scan (fusion.share: scans)
 
 
 @dataclass
@@ -96,7 +99,10 @@ class Agent:
         return Message(self.index, "prediction", t, position=self.position.copy(), estimate=estimate,
                        aim=self.aim.copy(), coasted=None if coasted is None else coasted[0], belief=belief)
 
-    def update(self, t: int, Z: np.ndarray, point: np.ndarray, level_w: float, prior_existence: float) -> Message:
-        est = self.filter.update(Z, self.position, point, level_w)
+    def update(self, t: int, Z: np.ndarray, point: np.ndarray, level_w: float, prior_existence: float,
+               others=()) -> Message:
+        f = self.filter
+        est = f.update(Z, self.position, point, level_w, others)
         return Message(self.index, "posterior", t, position=self.position.copy(), estimate=est,
-                       prior_existence=prior_existence)
+                       prior_existence=prior_existence, log_evidence=f.log_evidence,
+                       visibility=None if f.visibility is None else f.nu_pred)

@@ -81,6 +81,7 @@ def filter_params(s: Scenario) -> FilterParams:
         accel_var=s.filter_accel_var, walls=f.walls, low=np.asarray(s.area.low, dtype=float),
         high=np.asarray(s.area.high, dtype=float), noise_std=np.asarray(s.sensor.noise_std, dtype=float),
         clutter_rate=float(s.sensor.clutter_rate),
+        visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
     )
 
 
@@ -114,6 +115,7 @@ class Components:
     ospa_cutoff: float
     ospa_order: float
     gate: float  # metrics.gate, track quality judged by the truth [m]
+    report_spread: float | None  # fusion.report_spread [m]; None: report whenever e > 0.5
     max_step: float  # max(Delta_R), the clairvoyant chaser's step [m]
     plan: PlanSettings
     team: TeamSettings
@@ -147,7 +149,7 @@ def build(s: Scenario) -> Components:
         clutter_rate=float(s.sensor.clutter_rate),
         ospa_cutoff=float(s.metrics.ospa_cutoff),
         ospa_order=float(s.metrics.ospa_order),
-        gate=float(s.metrics.gate),
+        report_spread=None if s.fusion.report_spread is None else float(s.fusion.report_spread), gate=float(s.metrics.gate),
         max_step=float(max(s.agents.radial_steps)),
         plan=PlanSettings(
             solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.grasp.samples,
@@ -156,7 +158,7 @@ def build(s: Scenario) -> Components:
             time_limit_s=c.time_limit_s, belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
         ),
         team=TeamSettings(
-            existence_rule=s.fusion.existence, feedback=s.fusion.feedback,
+            existence_rule=s.fusion.existence, feedback=s.fusion.feedback, share=s.fusion.share,
             searching=c.fallback == "search", accel_var=s.filter_accel_var,
             loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps),
             failures=tuple((f.agent, f.step, f.mode) for f in s.comms.failures),

@@ -63,6 +63,12 @@ class RunResult:
     summary: dict
 
 
+def located(cov: np.ndarray, spread: float | None) -> bool:
+    """The fused track is tight enough to report: sqrt(trace(C_pos) / 3) <= ``spread`` (always
+    when ``spread`` is None)."""
+    return spread is None or float(np.sqrt(np.trace(cov[:3, :3]) / 3.0)) <= spread
+
+
 class Simulation:
     """A scenario run one step at a time. ``step()`` lets the configured solver decide;
     ``step((moves, levels))`` applies the given displacement and level indices, one per agent."""
@@ -109,7 +115,8 @@ class Simulation:
         fused = team.fuse(posteriors)
         report = next((d for d in decisions if d.mode != "down"), decisions[0])
         existence = np.nan if fused is None else fused.existence
-        est = fused.mean[:3] if (fused is not None and fused.existence > CONFIRM and fused.mean is not None) else None
+        est = fused.mean[:3] if (fused is not None and fused.existence > CONFIRM and fused.mean is not None
+                                 and located(fused.cov, c.report_spread)) else None
         truth_set = truth.position if truth.detectable else None
         err = ospa(truth_set, est, c=c.ospa_cutoff, p=c.ospa_order)
         record = StepRecord(

@@ -32,6 +32,7 @@ from trackjam.control.fallback import fallback_levels
 from trackjam.control.planning import PlanSettings, pooled_belief
 from trackjam.control.pursuit import AimSettings, pursuit_aim, search_aim
 from trackjam.control.problem import build_problem
+from trackjam.estimation.bernoulli import Scan
 from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.agent import Agent, Message
@@ -50,6 +51,7 @@ class TeamSettings:
     failures: tuple[tuple[int, int, str], ...] = ()  # comms.failures as (agent, step, mode)
     aim: AimSettings = AimSettings()  # control.lead, control.horizon: the aim ahead of x_bar
     search_reseed: str = "always"  # fusion.search_reseed: "always" | "evidence"
+    share: str = "posteriors"  # fusion.share: "posteriors" (CI, the paper) | "scans"
 
 
 @dataclass(frozen=True)
@@ -231,9 +233,18 @@ class Team:
     def update(self, scans: list[np.ndarray], points: np.ndarray, level_w: np.ndarray) -> list[Message | None]:
         """Each working agent updates its filter on its own scan (Section V-A)."""
         out: list[Message | None] = [None] * len(self.agents)
-        for j in self.working():
+        working = self.working()
+        others: dict[int, list] = {j: [] for j in working}
+        if self.settings.share == "scans":
+            ant = self.agents[working[0]].filter.ant if working else None
+            sent = [Message(j, "scan", self.t, position=self.agents[j].position.copy(),
+                            scan=Scan.of(scans[j], self.agents[j].position, points[j], float(level_w[j]), ant))
+                    for j in working]
+            inboxes = self.exchange.send(self.t, "scan", sent)
+            others = {j: [m.scan for m in inboxes[j] if m.stamp == self.t and m.sender != j] for j in working}
+        for j in working:
             prior = next(m for m in self.inbox[j] if m.sender == j).estimate.existence
-            out[j] = self.agents[j].update(self.t, scans[j], points[j], float(level_w[j]), prior)
+            out[j] = self.agents[j].update(self.t, scans[j], points[j], float(level_w[j]), prior, others[j])
         return out
 
     def fuse(self, posteriors: list[Message | None]) -> FusedEstimate | None:
@@ -242,6 +253,8 @@ class Team:
         (a searching agent from its lost track coasted). Returns the team's report: the fusion
         of the lowest-index working agent (None when every agent is down)."""
         s = self.settings
+        if s.share == "scans":
+            return self._own_estimates(posteriors)
         inboxes = self.exchange.send(self.t, "posterior", [m for m in posteriors if m is not None])
         report = None
         fused_by_inbox: dict[tuple[int, ...], FusedEstimate] = {}  # agents holding the same messages fuse alike
@@ -250,8 +263,11 @@ class Team:
             box = [m for m in inboxes[j] if m.stamp == self.t]
             key = tuple(id(m) for m in box)
             if key not in fused_by_inbox:
+                hidden = box and box[0].visibility is not None
                 fused_by_inbox[key] = fuse([m.estimate for m in box], predicted=[m.prior_existence for m in box],
-                                           rule=s.existence_rule)
+                                           rule=s.existence_rule,
+                                           log_evidence=[m.log_evidence for m in box] if hidden else None,
+                                           visibility=[m.visibility for m in box] if hidden else None)
             fused = fused_by_inbox[key]
             report = fused if report is None else report
             a.remember(fused.existence, fused.mean, fused.cov)
@@ -259,12 +275,26 @@ class Team:
                 continue
             if fused.mean is None and s.searching and a.last_track is not None:
                 if s.search_reseed == "evidence" and own_scan_raised(j, box):
-                    a.filter.reset_to(fused.existence)  # keep the particles its own scan supports
+                    a.filter.reset_to(fused.existence, visible=fused.visible)  # keep the particles its own scan supports
                     continue
                 mean, cov = a.coasted_track(s.accel_var)
-                a.filter.reset_to(fused.existence, mean, cov)
+                a.filter.reset_to(fused.existence, mean, cov, visible=fused.visible)
             else:
-                a.filter.reset_to(fused.existence, fused.mean, fused.cov)
+                a.filter.reset_to(fused.existence, fused.mean, fused.cov, visible=fused.visible)
+        return report
+
+
+    def _own_estimates(self, posteriors: list[Message | None]) -> FusedEstimate | None:
+        """fusion.share: scans: every agent's filter already holds the scans it received, so its
+        own posterior is its team estimate; the report is the lowest-index working agent's."""
+        report = None
+        for j in self.working():
+            est = posteriors[j].estimate
+            located = est.existence > CONFIRM
+            fused = FusedEstimate(est.existence, est.mean if located else None, est.cov if located else None,
+                                  np.zeros(0), None if posteriors[j].visibility is None else self.agents[j].filter.nu)
+            report = fused if report is None else report
+            self.agents[j].remember(fused.existence, fused.mean, fused.cov)
         return report
 
 
