@@ -145,10 +145,8 @@ def fuse(estimates: list[Estimate], predicted: list[float] | None = None, rule: 
     visible = None
     if visibility is not None and rule == "evidence":
         existence, visible = fused_visible(predicted, log_evidence, visibility)
-    else:
+    else:  # under the paper's mean rule every agent keeps its own P(visible)
         existence = fused_existence([est.existence for est in estimates], predicted, rule)
-        if visibility is not None:
-            visible = float(np.mean(visibility))
     weights = np.zeros(len(estimates))
     sensing = [j for j, est in enumerate(estimates) if est.existence > CONFIRM]
     if not sensing:
