@@ -86,12 +86,12 @@ def test_the_allowed_readers_exist():
 
 
 def test_only_the_build_step_the_cli_and_the_experiments_import_the_configuration():
-    """A type-only import (``if TYPE_CHECKING:``) is allowed anywhere: it never runs, and it lets
-    the entry points that are handed a scenario to pass on to build (``Simulation``,
-    ``simulate``, ``parallel_env``, ``write_run``) name its type in their signatures."""
+    """Not even for types: the entry points that are handed a scenario to pass on to build
+    (``Simulation``, ``simulate``, ``parallel_env``, ``write_run``) name its type through
+    ``trackjam.simulation.build``."""
     offenders = [
         f"{rel}:{line}" for rel, module, text in _modules() if not _reads_config(rel)
-        for line, type_only in config_imports(text, module) if not type_only
+        for line, _ in config_imports(text, module)
     ]
     assert not offenders, f"these modules import trackjam.config outside build/cli/experiments: {offenders}"
 

@@ -16,7 +16,7 @@ from trackjam.env.parallel import Planned, TrackjamParallelEnv
 from trackjam.env.policies import random_policy, rollout, solver_policy
 
 if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
-    from trackjam.config import Scenario
+    from trackjam.simulation.build import Scenario
 
 __all__ = ["Planned", "TrackjamParallelEnv", "observation_layout", "parallel_env", "random_policy", "rollout",
            "solver_policy"]

@@ -26,7 +26,7 @@ from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
 
 if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
-    from trackjam.config import Scenario
+    from trackjam.simulation.build import Scenario
 
 RENDER_MODES = ("rgb_array", "replay")
 

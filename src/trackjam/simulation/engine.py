@@ -27,7 +27,7 @@ from trackjam.simulation.team import Team
 from trackjam.world.target import TruthTarget
 
 if TYPE_CHECKING:  # the scenario is read in one place, simulation/build.py
-    from trackjam.config import Scenario
+    from trackjam.simulation.build import Scenario
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Callable
 from trackjam.simulation.engine import RunResult, Simulation
 
 if TYPE_CHECKING:
-    from trackjam.config import Scenario
+    from trackjam.simulation.build import Scenario
 
 __all__ = ["RunResult", "simulate"]
 

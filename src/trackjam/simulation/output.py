@@ -20,7 +20,7 @@ from trackjam.files import atomic_write, is_temporary_of
 from trackjam.simulation.build import figure_settings, scenario_text
 
 if TYPE_CHECKING:
-    from trackjam.config import Scenario
+    from trackjam.simulation.build import Scenario
 
 RUN_FILES = (
     "scenario.yaml",

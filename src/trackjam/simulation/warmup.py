@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from trackjam.config import Scenario
+    from trackjam.simulation.build import Scenario
 
 
 def warm_up(s: Scenario) -> None:
