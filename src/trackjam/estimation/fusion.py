@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from trackjam.estimation.bernoulli import Estimate
+from trackjam.estimation.bernoulli import Estimate, mix_visibility, posterior_visibility
 
 CONFIRM = 0.5  # an agent senses the target when e^j > 0.5 (Section V-A)
 
@@ -123,13 +123,8 @@ def fused_visible(predicted, log_evidence, visibility) -> tuple[float, float]:
     nu = float(np.mean(visibility))
     log_V = float(np.sum(log_evidence))
     prior = np.log(_odds(np.mean(np.asarray(predicted, dtype=float))))
-    if nu >= 1.0:
-        log_ratio, visible = log_V, 1.0
-    elif nu <= 0.0:
-        log_ratio, visible = 0.0, 0.0
-    else:
-        log_ratio = float(np.logaddexp(np.log(nu) + log_V, np.log1p(-nu)))
-        visible = float(np.exp(np.log(nu) + log_V - log_ratio))
+    log_ratio = float(mix_visibility(np.array([log_V]), nu)[0])  # one agent's mixing, on the team's evidence
+    visible = posterior_visibility(nu, log_V)
     log_odds = prior + log_ratio
     return float(1.0 / (1.0 + np.exp(-np.clip(log_odds, -700, 700)))), visible
 

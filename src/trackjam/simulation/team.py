@@ -231,13 +231,14 @@ class Team:
             a.position = a.position + displacements[d.move]
 
     def update(self, scans: list[np.ndarray], points: np.ndarray, level_w: np.ndarray) -> list[Message | None]:
-        """Each working agent updates its filter on its own scan (Section V-A)."""
+        """Each working agent updates its filter on its own scan (Section V-A) and, with
+        ``fusion.share: scans``, on every teammate's scan of this step it received."""
         out: list[Message | None] = [None] * len(self.agents)
         working = self.working()
         others: dict[int, list] = {j: [] for j in working}
         if self.settings.share == "scans":
             ant = self.agents[working[0]].filter.ant if working else None
-            sent = [Message(j, "scan", self.t, position=self.agents[j].position.copy(),
+            sent = [Message(j, "scan", self.t,
                             scan=Scan.of(scans[j], self.agents[j].position, points[j], float(level_w[j]), ant))
                     for j in working]
             inboxes = self.exchange.send(self.t, "scan", sent)
