@@ -14,6 +14,7 @@ from pydantic import (
     Field,
     StrictBool,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -152,6 +153,38 @@ class Target(_Model):
         if self.disappears is not None and self.disappears < self.appears:
             raise ValueError("disappears must be >= appears")
         return self
+
+
+MAX_TARGETS = 64
+MAX_ID_CHARS = 100
+
+
+def _target_id(v: Any) -> Any:
+    # an id names a target in logs and messages: a whole number or a short text, nothing that
+    # reads as something else (True, 2.5)
+    if v is None:
+        return v
+    if isinstance(v, str):
+        if not 1 <= len(v) <= MAX_ID_CHARS or v != v.strip():
+            raise ValueError(f"a text id must have 1 to {MAX_ID_CHARS} characters and no surrounding blanks, got {v!r}")
+        return v
+    if isinstance(v, float) and v.is_integer() and abs(v) < 2**63:
+        return int(v)
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+        raise ValueError(f"an id is an integer or a text, got {type(v).__name__} {v!r}")
+    if not abs(v) < 2**63:
+        raise ValueError(f"an integer id must lie within +-(2^63 - 1), got {v}")
+    return int(v)
+
+
+class ListedTarget(Target):
+    """One target of ``targets`` (ours): the fields of ``target`` and an id."""
+
+    id: Annotated[int | str | None, BeforeValidator(_target_id)] = Field(
+        None,
+        description=f"the target's id, an integer within +-(2^63 - 1) or a text of 1 to {MAX_ID_CHARS} characters, "
+        "unique in the list (1 and '1' are the same id); null: its index in the list",
+    )
 
 
 class Agents(_Model):
@@ -440,6 +473,11 @@ class Scenario(_Model):
     seed: Integer(0, 2**63 - 1) = Field(1, description="the one seed every random choice flows from, in [0, 2^63 - 1]")
     area: Area = Field(default_factory=Area)
     target: Target = Field(default_factory=Target)
+    targets: list[ListedTarget] | None = Field(
+        None,
+        description=f"several truth targets (ours), 1 to {MAX_TARGETS}, each with the keys of `target` and an `id`; "
+        "null: the one `target` (a scenario gives `target` or `targets`, not both)",
+    )
     agents: Agents = Field(default_factory=Agents)
     antenna: Antenna = Field(default_factory=Antenna)
     sensor: Sensor = Field(default_factory=Sensor)
@@ -455,6 +493,51 @@ class Scenario(_Model):
         check_name(v)
         return v
 
+    @field_validator("targets")
+    @classmethod
+    def _target_list(cls, v: list[ListedTarget] | None) -> list[ListedTarget] | None:
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("the list is empty; give at least one target (or leave targets out for the one `target`)")
+        if len(v) > MAX_TARGETS:
+            raise ValueError(f"{len(v)} targets, at most {MAX_TARGETS}")
+        v = [t.model_copy(update={"id": k}) if t.id is None else t for k, t in enumerate(v)]
+        first: dict[str, int] = {}
+        for k, t in enumerate(v):
+            if str(t.id) in first:
+                raise ValueError(f"targets[{first[str(t.id)]}] and targets[{k}] have the same id {t.id!r}")
+            first[str(t.id)] = k
+        return v
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_target(cls, data: Any) -> Any:
+        # `target: null` beside a list sets the one target aside, e.g. on a preset that gives one
+        if isinstance(data, dict) and "target" in data and data["target"] is None and data.get("targets") is not None:
+            return {k: v for k, v in data.items() if k != "target"}
+        return data
+
+    @model_validator(mode="after")
+    def _one_target(self) -> "Scenario":
+        if self.targets is None:
+            return self
+        if "target" in self.model_fields_set:
+            raise ValueError(
+                "give either target (one target) or targets (a list of them), not both; `target: null` sets a "
+                "given target aside"
+            )
+        # code that knows one target reads the first of the list (frozen: set once, here)
+        self.__dict__["target"] = Target(**self.targets[0].model_dump(exclude={"id"}))
+        return self
+
+    @model_serializer(mode="wrap")
+    def _written(self, handler: Any) -> dict:
+        # a scenario is written as it is given: `target` for one target, `targets` for a list
+        out = handler(self)
+        out.pop("target" if self.targets is not None else "targets", None)
+        return out
+
     @model_validator(mode="after")
     def _consistent(self) -> "Scenario":
         n = len(self.agents.initial)
@@ -467,10 +550,13 @@ class Scenario(_Model):
         for k, f in enumerate(self.comms.failures):
             if f.agent >= n:
                 raise ValueError(f"comms.failures[{k}].agent {f.agent} is not an agent index (0..{n - 1})")
-        if self.target.initial is not None:
+        if self.target.initial is not None and self.targets is None:
             x = self.target.initial
             if any(not lo[k] <= x[k] <= hi[k] for k in range(3)):
                 raise ValueError(f"target.initial position {list(x[:3])} lies outside the area")
+        for j, tg in enumerate(self.targets or []):
+            if tg.initial is not None and any(not lo[k] <= tg.initial[k] <= hi[k] for k in range(3)):
+                raise ValueError(f"targets[{j}].initial position {list(tg.initial[:3])} (id {tg.id!r}) lies outside the area")
         check_resources(self)
         return self
 
@@ -478,6 +564,13 @@ class Scenario(_Model):
     @property
     def n_agents(self) -> int:
         return len(self.agents.initial)
+
+    @property
+    def target_list(self) -> list[ListedTarget]:
+        """Every truth target with its id: ``targets``, or the one ``target`` with id 0."""
+        if self.targets is not None:
+            return list(self.targets)
+        return [ListedTarget(**self.target.model_dump(), id=0)]
 
     @property
     def filter_accel_var(self) -> float:

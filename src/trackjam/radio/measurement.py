@@ -83,3 +83,38 @@ def sample_scan(
     from_target[: len(rows)] = True
     Z = np.vstack(rows + [clutter]) if rows else clutter
     return Z.reshape(-1, 3), from_target
+
+
+def sample_scan_multi(
+    rng: np.random.Generator,
+    X,
+    u: np.ndarray,
+    p_d,
+    noise_std,
+    clutter_rate: float,
+    max_range: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One scan of one agent with K targets (ours): each target whose row of ``X`` is given
+    (a position; None or NaN: absent or undetectable) yields a measurement with its own
+    probability ``p_d[k]``, independently, plus clutter. Returns ``(Z (m, 3), source (m,))``,
+    ``source`` the target's index or -1 for clutter; target measurements come first, in target
+    order.
+
+    Draws in a fixed order whatever the outcome: K detection draws, K noise vectors, then the
+    clutter, so that one target draws exactly what :func:`sample_scan` draws.
+    """
+    k = len(X)
+    p_d = np.broadcast_to(np.asarray(p_d, dtype=float), (k,))
+    detect_draw = rng.uniform(size=k)
+    noise = rng.normal(0.0, 1.0, size=(k, 3)) * np.asarray(noise_std, dtype=float)
+    clutter = sample_clutter(rng, clutter_rate, max_range)
+    rows, source = [], []
+    for i in range(k):
+        x = None if X[i] is None else np.asarray(X[i], dtype=float)
+        if x is not None and np.all(np.isfinite(x[:3])) and detect_draw[i] < p_d[i]:
+            z = h(x, u) + noise[i]
+            z[1] = wrap_angle(z[1])
+            rows.append(z)
+            source.append(i)
+    Z = np.vstack(rows + [clutter]) if rows else clutter
+    return Z.reshape(-1, 3), np.array(source + [-1] * len(clutter), dtype=np.int64)

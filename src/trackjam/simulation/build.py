@@ -58,6 +58,17 @@ def target_params(s: Scenario) -> TargetParams:
     )
 
 
+def targets_params(s: Scenario) -> list[TargetParams]:
+    """Every truth target's parameters, in the order of ``targets`` (one for ``target``): each is
+    :func:`target_params` of the scenario with that target as its one target."""
+    return [target_params(s.model_copy(update={"target": tg})) for tg in s.target_list]
+
+
+def target_ids(s: Scenario) -> list[int | str]:
+    """The targets' ids, in the order of :func:`targets_params` (0 for the one ``target``)."""
+    return [tg.id for tg in s.target_list]
+
+
 def antenna_model(s: Scenario) -> AntennaModel:
     """The conic antenna of Eqs. (9)-(10) and (13), in watts and radians."""
     a = s.antenna
