@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from trackjam.control.assignment import build_assignment
+from trackjam.control.assignment_exact import solve_assignment_exact
 from trackjam.control.exact import BranchAndBound, solve_exact
 from trackjam.control.grasp import solve_grasp
 from trackjam.control.problem import build_problem
@@ -210,6 +212,46 @@ def bench_budget(n_agents=(6, 8), instances: int = 20, seed: int = 0, time_limit
     return {"controls": 79, "time_limit_s": time_limit_s, "rows": rows}
 
 
+def draw_targets(rng: np.random.Generator, n_targets: int, n_agents: int, spread: float = 15.0,
+                 radius: float = 20.0):
+    """(positions (N,3), aims (K,3), opening angle [deg]) of a swarm's step: a centre uniform in
+    the area, K aims uniform in a ``spread`` [m] ball around it, N agents in a ``radius`` ball."""
+    u, x, a = draw_instance(rng, n_agents, radius)
+    d = rng.normal(size=(n_targets, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    aims = np.clip(x + spread * rng.uniform(size=(n_targets, 1)) ** (1 / 3) * d, LOW, HIGH)
+    return u, aims, a
+
+
+def bench_assignment(n_targets: int = 2, n_agents: int = 4, instances: int = 200, seed: int = 0,
+                     objective: str = "sum", n_controls: int = 79, at_least: int = 2) -> dict:
+    """`exact` for K targets (each agent also chooses the target it serves), unbudgeted: time of
+    build and solve per step and of the search alone, nodes, share proven optimal."""
+    _warm()
+    D = displacement_set(*CONTROL_CASES[n_controls])
+    antennas = {a: paper_antenna(a) for a in OPENING_ANGLES_DEG}
+    rng = np.random.default_rng([seed, n_targets, n_agents])
+    warm = build_assignment(*draw_targets(rng, n_targets, n_agents)[:2], D, antennas[80.0], LOW, HIGH,
+                                        at_least, True, objective)
+    solve_assignment_exact(warm)
+    total_ms, solve_ms, nodes, proven = [], [], [], []
+    for _ in range(instances):
+        u, aims, a = draw_targets(rng, n_targets, n_agents)
+        t = time.perf_counter()
+        P = build_assignment(u, aims, D, antennas[a], LOW, HIGH, at_least, True, objective)
+        t1 = time.perf_counter()
+        sol = solve_assignment_exact(P)
+        t2 = time.perf_counter()
+        total_ms.append(1e3 * (t2 - t))
+        solve_ms.append(1e3 * (t2 - t1))
+        nodes.append(sol.nodes)
+        proven.append(sol.optimal)
+    return {"targets": n_targets, "agents": n_agents, "at_least": at_least, "objective": objective,
+            "controls": n_controls, "instances": instances, "build_and_solve": _stats(total_ms),
+            "solve": _stats(solve_ms), "nodes_median": float(np.median(nodes)), "nodes_max": int(np.max(nodes)),
+            "proven_optimal": float(np.mean(proven))}
+
+
 def run(quick: bool = True, seed: int = 0) -> dict:
     """All the control benchmarks; ``quick`` keeps the total well under 2 minutes."""
     if quick:
@@ -221,6 +263,8 @@ def run(quick: bool = True, seed: int = 0) -> dict:
             "exact_budget": bench_budget((6, 8), 5, seed),
             "exact_belief_16": bench_belief(16, 40, seed),
             "exact_belief_32": bench_belief(32, 20, seed),
+            "assignment_k2_n4_sum": bench_assignment(2, 4, 40, seed, "sum"),
+            "assignment_k2_n4_min": bench_assignment(2, 4, 40, seed, "min"),
         }
     return {
         "exact_79": bench_exact(79, 1000, seed),
@@ -232,6 +276,9 @@ def run(quick: bool = True, seed: int = 0) -> dict:
         "exact_budget": bench_budget((6, 8), 20, seed),
         "exact_belief_16": bench_belief(16, 200, seed),
         "exact_belief_32": bench_belief(32, 200, seed),
+        "assignment_k2_n4_sum": bench_assignment(2, 4, 200, seed, "sum"),
+        "assignment_k2_n4_min": bench_assignment(2, 4, 200, seed, "min"),
+        "assignment_k3_n5_sum": bench_assignment(3, 5, 100, seed, "sum"),
     }
 
 

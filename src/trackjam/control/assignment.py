@@ -1,0 +1,75 @@
+"""Control for several targets (ours, issue 12): every agent chooses its move, its level and the
+target its cone serves; the registry of the K-target solvers and their one entry point.
+
+``ASSIGNMENT_SOLVERS`` maps the names of ``control.solver`` to functions ``(problem, rngs,
+options) -> AssignmentSolution`` taking the one-target :class:`SolverOptions`: ``greedy``
+(Eq. 11 with a choice of target), ``grasp`` (the paper's GRASP over (move, level, target)),
+``exact`` (branch and bound, the proven optimum within a budget). It is a registry of its own,
+beside :data:`trackjam.control.solve.SOLVERS` (whose names it repeats), so the one-target
+solvers are untouched; with one aim each solver returns the one-target solver's plan.
+The problem, its objective and the rules per target are in :mod:`assignment_problem`.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+
+from trackjam.control.assignment_exact import solve_assignment_exact
+from trackjam.control.assignment_grasp import solve_assignment_grasp
+from trackjam.control.assignment_problem import (
+    OBJECTIVES,
+    AssignmentProblem,
+    AssignmentSolution,
+    build_assignment,
+    solve_assignment_greedy,
+)
+from trackjam.control.solve import SolverOptions
+
+__all__ = ["ASSIGNMENT_SOLVERS", "OBJECTIVES", "AssignmentProblem", "AssignmentSolution", "SolverOptions",
+           "build_assignment", "register_assignment", "solve_assignment"]
+
+AssignmentSolver = Callable[[AssignmentProblem, Sequence[np.random.Generator], SolverOptions], AssignmentSolution]
+
+ASSIGNMENT_SOLVERS: dict[str, AssignmentSolver] = {}
+
+
+def register_assignment(name: str) -> Callable[[AssignmentSolver], AssignmentSolver]:
+    """Register ``fn`` as the K-target solver called ``name``."""
+
+    def add(fn: AssignmentSolver) -> AssignmentSolver:
+        if name in ASSIGNMENT_SOLVERS:
+            raise ValueError(f"assignment solver {name!r} is registered twice")
+        ASSIGNMENT_SOLVERS[name] = fn
+        return fn
+
+    return add
+
+
+@register_assignment("greedy")
+def _greedy(problem: AssignmentProblem, rngs: Sequence[np.random.Generator],
+            options: SolverOptions) -> AssignmentSolution:
+    return solve_assignment_greedy(problem)
+
+
+@register_assignment("grasp")
+def _grasp(problem: AssignmentProblem, rngs: Sequence[np.random.Generator],
+           options: SolverOptions) -> AssignmentSolution:
+    return solve_assignment_grasp(problem, list(rngs), samples=options.samples, iterations=options.iterations,
+                                  neighbours=options.neighbours, threads=options.threads)
+
+
+@register_assignment("exact")
+def _exact(problem: AssignmentProblem, rngs: Sequence[np.random.Generator],
+           options: SolverOptions) -> AssignmentSolution:
+    return solve_assignment_exact(problem, time_limit_s=options.time_limit_s, node_limit=options.node_limit)
+
+
+def solve_assignment(problem: AssignmentProblem, solver: str, rngs: Sequence[np.random.Generator],
+                     options: SolverOptions = SolverOptions()) -> AssignmentSolution:
+    """The step's joint control for K targets by the registered ``solver`` (``rngs``: one
+    generator per agent, each agent's plan stream; only ``grasp`` draws from them)."""
+    if solver not in ASSIGNMENT_SOLVERS:
+        raise ValueError(f"unknown solver {solver!r}; expected one of {', '.join(ASSIGNMENT_SOLVERS)}")
+    return ASSIGNMENT_SOLVERS[solver](problem, rngs, options)

@@ -1,0 +1,393 @@
+"""The proven optimum of the K-target decision (:mod:`assignment_problem`) by branch and bound
+(ours), with the one-target solver's time budget and certified gap.
+
+Agents are placed in index order. Each agent's choices form K blocks, one per target, in target
+order; within block k its (candidate, level) pairs come in the one-target order (p_D at x_bar_k
+descending, then lower level, then lower move: :func:`pair_order`). With K = 1 this is exactly
+the one-target search, so it returns the same plan. Eq. (13) is forward-checked as there, with
+the one-target kernels over extended candidates (slot c aimed at x_bar_k).
+
+The bound. At depth d (agents 0..d-1 placed) every unplaced agent j > d has, per target k, its
+best p_D b_jk among pairs still admissible against the placed agents (none: it cannot serve k).
+If a completion sends a_k unplaced agents to target k, Xi_k is at most U_k(a_k): Xi of the
+placed servers of k and the a_k largest b_jk, with threshold min(n, m_k + a_k) (Xi rises with
+every p_D when the threshold is fixed, and the a_k largest dominate any a_k of them). The bound
+is the best team objective over counts (a_1..a_K) summing to the number of unplaced agents, a
+small dynamic programme over targets. For agent d itself serving k with p_D = x, U_k is
+A + B x (A = P(at least t others detect), B = P(exactly t - 1 do)), so the bound rises with x:
+once a pair of block k is cut, the rest of block k is too.
+
+``enumerate_assignment`` is the plain-numpy enumeration the tests hold the kernel to.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+from numba import njit
+
+from trackjam.control.assignment_problem import (
+    AssignmentProblem,
+    AssignmentSolution,
+    assignment_value,
+    kernel_targets_value,
+    to_assignment_solution,
+)
+from trackjam.control.exact import CHUNK_S, _first_admissible, _pair_row, pair_order
+from trackjam.control.objective import kernel_feasible
+
+
+@njit(cache=True)
+def _comb(kind, a, b):
+    """The team objective of two partial values: sum or min (-inf absorbs)."""
+    if a == -np.inf or b == -np.inf:
+        return -np.inf
+    return a + b if kind == 0 else min(a, b)
+
+
+@njit(cache=True)
+def _tail(q, n, t):
+    """P(at least t detect) from the truncated count law ``q`` (q[n] = P(at least n))."""
+    acc = q[n]
+    for m in range(t, n):
+        acc += q[m]
+    return acc
+
+
+@njit(cache=True)
+def _add(q, n, x):
+    """One more agent detecting with probability ``x`` in the truncated count law ``q``."""
+    q[n] += q[n - 1] * x
+    for m in range(n - 1, 0, -1):
+        q[m] = q[m] * (1.0 - x) + q[m - 1] * x
+    q[0] *= 1.0 - x
+
+
+@njit(cache=True)
+def _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R):
+    """The bound's tables of depth d: for every target k and count a of unplaced agents sent to
+    it, ``A[d, k, a] + B[d, k, a] x`` bounds Xi_k with agent d at p_D x also serving k, and
+    ``R[d, k, r]`` is the best combination of the other targets' U with r unplaced agents."""
+    N, K = bptr.shape[1], bptr.shape[2]
+    u = N - 1 - d
+    q = np.empty(n + 1)
+    b = np.empty(N)
+    W = np.full((K, N), -np.inf)  # U_k(a) without agent d
+    for k in range(K):
+        q[0] = 1.0
+        q[1:] = 0.0
+        m = 0
+        for j in range(d):
+            if tg[j] == k:
+                _add(q, n, pp[j])
+                m += 1
+        nb = 0
+        for j in range(d + 1, N):
+            r = bptr[d, j, k]
+            if r < (k + 1) * blk[j]:
+                x = ps[j, r]
+                pos = nb  # insertion sort, descending
+                while pos > 0 and b[pos - 1] < x:
+                    b[pos] = b[pos - 1]
+                    pos -= 1
+                b[pos] = x
+                nb += 1
+        for a in range(u + 1):
+            if a > nb:
+                A[d, k, a] = -np.inf
+                B[d, k, a] = 0.0
+                continue
+            if a > 0:
+                _add(q, n, b[a - 1])
+            W[k, a] = 0.0 if m + a == 0 else _tail(q, n, min(n, m + a))
+            t = min(n, m + a + 1)
+            A[d, k, a] = _tail(q, n, t)
+            B[d, k, a] = q[t - 1]
+    best = np.empty(u + 1)
+    new = np.empty(u + 1)
+    for k in range(K):
+        best[:] = -np.inf
+        best[0] = 0.0 if kind == 0 else np.inf
+        for k2 in range(K):
+            if k2 == k:
+                continue
+            for r in range(u + 1):
+                v = -np.inf
+                for a in range(r + 1):
+                    v = max(v, _comb(kind, best[r - a], W[k2, a]))
+                new[r] = v
+            best[:] = new
+        R[d, k, : u + 1] = best
+
+
+@njit(cache=True)
+def kernel_pair_bound(d, k, x, kind, A, B, R, n_agents):
+    """Bound of every completion with agent d serving target k at p_D ``x``."""
+    u = n_agents - 1 - d
+    out = -np.inf
+    for a in range(u + 1):
+        if A[d, k, a] == -np.inf:
+            break  # fewer than a agents can serve k
+        out = max(out, _comb(kind, A[d, k, a] + B[d, k, a] * x, R[d, k, u - a]))
+    return out
+
+
+@njit(cache=True)
+def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, ps, rank_c, rank_l, rank_pair,
+                         blk, n_pairs, rows, have, c, lv, rank, tg, pp, pair, recv, bptr, cur, A, B, R,
+                         best_pair, best_target, state, best_value, max_nodes):
+    """Maximise the team objective subject to Eq. (13) (when ``constrained``), resumably.
+
+    ``ps[i, r]`` is p_D of agent i's choice of rank r (block r // blk[i] is its target),
+    ``rank_c``/``rank_l`` its extended candidate and level, ``rank_pair`` its pair c * L + l;
+    ``state`` = [depth, nodes], ``best_value`` = [incumbent]; with the other arrays they are the
+    whole search state. Runs at most ``max_nodes`` more nodes (all when <= 0); True when done.
+    """
+    N = n_pairs.shape[0]
+    kk = np.empty(N, dtype=np.int64)
+    pw = np.empty(N)
+    q = np.empty(n + 1)
+    d = state[0]
+    nodes = state[1]
+    best = best_value[0]
+    stop = nodes + max_nodes
+    if nodes == 0 and d == 0:
+        _tables(0, n, kind, ps, blk, tg, pp, bptr, A, B, R)
+    while d >= 0:
+        descended = False
+        while cur[d] < n_pairs[d]:
+            if max_nodes > 0 and nodes >= stop:
+                state[0] = d
+                state[1] = nodes
+                best_value[0] = best
+                return False
+            k = cur[d] // blk[d]
+            end = (k + 1) * blk[d]
+            r = max(cur[d], bptr[d, d, k])
+            if constrained and d > 0 and r < end:
+                r = _first_admissible(d, r, d - 1, rank, rank_c, rank_l, n_pairs, rows, gain,
+                                      levels_w, delta, c, lv, recv)
+            if r >= end:
+                cur[d] = end
+                continue
+            cur[d] = r + 1
+            nodes += 1
+            if kernel_pair_bound(d, k, ps[d, r], kind, A, B, R, N) <= best:
+                cur[d] = end  # no later pair of this block does better
+                continue
+            c[d] = rank_c[d, r]
+            lv[d] = rank_l[d, r]
+            rank[d] = r
+            tg[d] = k
+            pp[d] = ps[d, r]
+            pair[d] = rank_pair[d, r]
+            if constrained:
+                inc = 0.0
+                for j in range(d):
+                    inc += levels_w[lv[j]] * gain[d, j, c[d], c[j]]
+                    recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
+                recv[d, d] = inc
+            if d == N - 1:
+                value = kernel_targets_value(pz, n, kind, pair, tg, kk, pw, q)
+                if value > best:
+                    best = value
+                    best_pair[:] = pair
+                    best_target[:] = tg
+                cur[d] = end  # later pairs of the block have lower or equal p_D
+                continue
+            if constrained and not have[d, r]:
+                _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows)
+                have[d, r] = True
+            dead = False
+            for j in range(d + 1, N):
+                alive = False
+                for k2 in range(bptr.shape[2]):
+                    e2 = (k2 + 1) * blk[j]
+                    rr = bptr[d, j, k2]
+                    if constrained and rr < e2:
+                        rr = min(_first_admissible(j, rr, d, rank, rank_c, rank_l, n_pairs, rows, gain,
+                                                   levels_w, delta, c, lv, recv), e2)
+                    bptr[d + 1, j, k2] = rr
+                    alive = alive or rr < e2
+                if not alive:
+                    dead = True
+                    break
+            if dead:
+                continue
+            d += 1
+            cur[d] = 0
+            _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R)
+            descended = True
+            break
+        if not descended:
+            d -= 1
+    state[0] = d
+    state[1] = nodes
+    best_value[0] = best
+    return True
+
+
+@njit(cache=True)
+def kernel_start(pz, gain, levels_w, delta, n, kind, constrained, n_agents):
+    """Value of the starting incumbent: every agent hovering at level 0 serving target 0
+    (-inf when Eq. (13) is enforced and broken)."""
+    z = np.zeros(n_agents, dtype=np.int64)
+    if constrained and not kernel_feasible(gain, levels_w, delta, z, z):
+        return -np.inf
+    return kernel_targets_value(pz, n, kind, z, z, np.empty(n_agents, dtype=np.int64),
+                                np.empty(n_agents), np.empty(n + 1))
+
+
+class AssignmentSearch:
+    """One exact search over an :class:`AssignmentProblem`, run in chunks."""
+
+    def __init__(self, problem: AssignmentProblem):
+        self.problem = problem
+        N, K, C, L = problem.n_agents, problem.n_targets, problem.n_slots, problem.n_levels
+        self.blk = problem.n_cand * L
+        self.n_pairs = K * self.blk
+        P = int(self.n_pairs.max())
+        self.rank_c = np.zeros((N, P), dtype=np.int64)
+        self.rank_l = np.zeros((N, P), dtype=np.int64)
+        self.rank_pair = np.zeros((N, P), dtype=np.int64)
+        self.ps = np.zeros((N, P))
+        for k, Pk in enumerate(problem.targets):
+            order, _ = pair_order(Pk)
+            for i in range(N):
+                b = int(self.blk[i])
+                o = order[i, :b]
+                self.rank_c[i, k * b:(k + 1) * b] = k * C + o // L
+                self.rank_l[i, k * b:(k + 1) * b] = o % L
+                self.rank_pair[i, k * b:(k + 1) * b] = o
+                self.ps[i, k * b:(k + 1) * b] = problem.pz[k, i, o]
+        constrained = problem.constraints
+        W = (P + 63) // 64 if constrained else 1
+        self.rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
+        self.have = np.zeros((N, P), dtype=np.bool_)
+        self.c = np.zeros(N, dtype=np.int64)
+        self.lv = np.zeros(N, dtype=np.int64)
+        self.rank = np.zeros(N, dtype=np.int64)
+        self.tg = np.zeros(N, dtype=np.int64)
+        self.pp = np.zeros(N)
+        self.pair = np.zeros(N, dtype=np.int64)
+        self.recv = np.zeros((N, N))
+        self.bptr = np.zeros((N + 1, N, K), dtype=np.int64)
+        self.bptr[0] = np.arange(K)[None, :] * self.blk[:, None]
+        self.cur = np.zeros(N, dtype=np.int64)
+        self.A = np.zeros((N, K, N))
+        self.B = np.zeros((N, K, N))
+        self.R = np.zeros((N, K, N))
+        self.best_pair = np.zeros(N, dtype=np.int64)
+        self.best_target = np.zeros(N, dtype=np.int64)
+        self.state = np.zeros(2, dtype=np.int64)
+        start = kernel_start(problem.pz, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
+                             problem.kind, constrained, N)
+        self.best_value = np.array([start])
+        self.finished = False
+
+    @property
+    def nodes(self) -> int:
+        return int(self.state[1])
+
+    @property
+    def value(self) -> float:
+        return float(self.best_value[0])
+
+    def step(self, max_nodes: int) -> bool:
+        """Run at most ``max_nodes`` more nodes (all when <= 0); True when the search is done."""
+        P = self.problem
+        if not self.finished:
+            self.finished = bool(kernel_assignment_bb(
+                P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind, P.constraints, self.ps,
+                self.rank_c, self.rank_l, self.rank_pair, self.blk, self.n_pairs, self.rows, self.have,
+                self.c, self.lv, self.rank, self.tg, self.pp, self.pair, self.recv, self.bptr, self.cur,
+                self.A, self.B, self.R, self.best_pair, self.best_target, self.state, self.best_value,
+                int(max_nodes),
+            ))
+        return self.finished
+
+    def run(self, time_limit_s: float | None = None, node_limit: int = 0) -> bool:
+        """Search until done, ``time_limit_s`` [s] has passed or ``node_limit`` nodes (> 0) have
+        been visited (chunks sized as in the one-target search); True when complete."""
+        start = time.perf_counter()
+        chunk = 2048
+        while True:
+            if node_limit > 0:
+                chunk = min(chunk, node_limit - self.nodes)
+                if chunk <= 0:
+                    return self.finished
+            t0 = time.perf_counter()
+            if self.step(chunk):
+                return True
+            now = time.perf_counter()
+            aim = CHUNK_S
+            if time_limit_s is not None:
+                left = time_limit_s - (now - start)
+                if left <= 0:
+                    return False
+                aim = min(CHUNK_S, left)
+            rate = chunk / max(now - t0, 1e-6)
+            chunk = int(min(max(rate * aim, 64), 1 << 26))
+
+    def open_bound(self) -> float:
+        """Largest bound of any branch not yet explored (-inf when none is left): at every depth
+        of the current path, each target block's next untried pair."""
+        if self.finished:
+            return -np.inf
+        N = self.problem.n_agents
+        out = -np.inf
+        for e in range(int(self.state[0]) + 1):
+            r = int(self.cur[e])
+            while r < self.n_pairs[e]:
+                k = r // int(self.blk[e])
+                end = (k + 1) * int(self.blk[e])
+                r = max(r, int(self.bptr[e, e, k]))
+                if r < end:
+                    out = max(out, float(kernel_pair_bound(e, k, self.ps[e, r], self.problem.kind,
+                                                           self.A, self.B, self.R, N)))
+                r = end
+        return out
+
+    def solution(self) -> AssignmentSolution:
+        """The incumbent, with whether it is proven optimal and its certified gap."""
+        L = self.problem.n_levels
+        sol = to_assignment_solution(self.problem, self.best_pair // L, self.best_pair % L, self.best_target)
+        gap = max(self.open_bound() - self.value, 0.0)
+        return dataclasses.replace(sol, optimal=gap == 0.0, gap=gap, nodes=self.nodes)
+
+
+def solve_assignment_exact(problem: AssignmentProblem, time_limit_s: float | None = None,
+                           node_limit: int = 0) -> AssignmentSolution:
+    """The optimum of the K-target decision, or, when ``time_limit_s`` [s] or ``node_limit``
+    nodes run out first, the best plan found with its certified gap."""
+    search = AssignmentSearch(problem)
+    search.run(time_limit_s, node_limit)
+    return search.solution()
+
+
+def enumerate_assignment(problem: AssignmentProblem) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """Plain-numpy enumeration of every (candidate, level, target) of every agent, in the
+    search's order (small instances only): (value, candidate slots, levels, targets), with the
+    search's starting incumbent and ties."""
+    N, K, L = problem.n_agents, problem.n_targets, problem.n_levels
+    orders = [pair_order(P)[0] for P in problem.targets]
+    tgt, prs = [], []  # each agent's choices in the search's order: target blocks, pair ranks
+    for i in range(N):
+        b = int(problem.n_cand[i]) * L
+        tgt.append(np.repeat(np.arange(K), b))
+        prs.append(np.concatenate([orders[k][i, :b] for k in range(K)]))
+    idx = np.stack([g.ravel() for g in np.meshgrid(*[np.arange(len(t)) for t in tgt], indexing="ij")], axis=-1)
+    target = np.stack([tgt[i][idx[:, i]] for i in range(N)], axis=-1)
+    pair = np.stack([prs[i][idx[:, i]] for i in range(N)], axis=-1)
+    value, ok = assignment_value(problem, pair // L, pair % L, target)
+    if problem.constraints:
+        value = np.where(ok, value, -np.inf)
+    z = np.zeros(N, dtype=np.int64)
+    v0, ok0 = assignment_value(problem, z, z, z)
+    start = float(v0) if (ok0 or not problem.constraints) else -np.inf
+    s = int(np.argmax(value))
+    if value[s] > start:
+        return float(value[s]), pair[s] // L, pair[s] % L, target[s]
+    return start, z, z, z
