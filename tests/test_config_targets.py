@@ -126,3 +126,14 @@ def test_the_command_line_refuses_bad_targets_with_exit_2(item, key):
     lines = [line for line in r.stderr.splitlines() if line.strip()]
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert len(lines) == 1 and key in lines[0], r.stderr
+
+
+def test_each_listed_target_warns_under_its_own_key():
+    from trackjam.config.warnings import scenario_warnings
+
+    s = _two("targets=[{appears: 3}, {appears: 31, occlusions: [[2, 3], [29, 40]]}]")
+    lines = scenario_warnings(s)
+    assert len(lines) == 2 and lines[0].startswith("targets[1].appears: step 31") and "never appears" in lines[0]
+    assert lines[1] == "targets[1].occlusions: [29, 40] reach past the last step (30)"
+    one = scenario_warnings(load_scenario("paper-fig3", ["target.appears=31"]))
+    assert one == ["target.appears: step 31 comes after the last step (30); the target never appears"]

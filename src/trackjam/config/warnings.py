@@ -16,12 +16,14 @@ def scenario_warnings(s: Scenario) -> list[str]:
             f"antenna.opening_angle_deg: {theta:g} deg is a very narrow cone (radians by mistake? "
             f"{theta:g} rad is {theta * 57.29577951308232:.0f} deg)"
         )
-    t = s.target
-    if s.target.stochastic is None and t.appears > s.steps:
-        out.append(f"target.appears: step {t.appears} comes after the last step ({s.steps}); the target never appears")
-    late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps]
-    if late:
-        out.append(f"target.occlusions: {', '.join(late)} reach past the last step ({s.steps})")
+    listed = s.targets is not None
+    for k, t in enumerate(s.target_list):
+        key = f"targets[{k}]" if listed else "target"
+        if t.stochastic is None and t.appears > s.steps:
+            out.append(f"{key}.appears: step {t.appears} comes after the last step ({s.steps}); the target never appears")
+        late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps]
+        if late:
+            out.append(f"{key}.occlusions: {', '.join(late)} reach past the last step ({s.steps})")
     at: dict[tuple, list[int]] = {}
     for j, u in enumerate(s.agents.initial):
         at.setdefault(tuple(u), []).append(j)
