@@ -7,6 +7,8 @@ import sys
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from trackjam.config import Scenario, load_scenario, preset_names, scenario_to_yaml, validate_scenario
 from trackjam.errors import ConfigError
@@ -137,3 +139,36 @@ def test_each_listed_target_warns_under_its_own_key():
     assert lines[1] == "targets[1].occlusions: [29, 40] reach past the last step (30)"
     one = scenario_warnings(load_scenario("paper-fig3", ["target.appears=31"]))
     assert one == ["target.appears: step 31 comes after the last step (30); the target never appears"]
+
+
+def _paths(node, prefix=()):
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield prefix + (k,)
+            yield from _paths(v, prefix + (k,))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield prefix + (i,)
+            yield from _paths(v, prefix + (i,))
+
+
+LISTED = yaml.safe_load(scenario_to_yaml(_two()))
+TARGET_PATHS = sorted({p for p in _paths(LISTED) if p[0] == "targets"}, key=str)
+ODD = [1e300, -1, 0, 0.5, float("nan"), float("inf"), 10**30, True, None, "", "abc", [], [1, 2], {}, {"x": 1}, 3, "b", 0]
+
+
+@settings(max_examples=300, deadline=None)
+@given(path=st.sampled_from(TARGET_PATHS), value=st.sampled_from(ODD))
+def test_an_odd_value_in_a_target_list_is_refused_in_one_line_or_accepted(path, value):
+    data = yaml.safe_load(yaml.safe_dump(LISTED))
+    node = data
+    for p in path[:-1]:
+        node = node[p]
+    node[path[-1]] = value
+    try:
+        s = validate_scenario(data)
+    except ConfigError as err:
+        assert "\n" not in str(err) and str(err)
+        return
+    assert len(targets_params(s)) == len(target_ids(s)) == len(s.target_list)
+    assert len({str(i) for i in target_ids(s)}) == len(s.target_list)
