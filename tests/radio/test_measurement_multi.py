@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackjam.radio.measurement import h, sample_scan, sample_scan_multi
+from trackjam.radio.measurement import h, sample_scan, sample_scan_multi, target_exposure
 
 NOISE = (0.8, np.pi / 50, np.pi / 50)
 U = np.array([30.0, 30.0, 30.0])
@@ -77,3 +77,41 @@ def test_each_target_is_detected_on_its_own_at_its_rate():
 def test_clutter_is_labelled_minus_one_and_counted_poisson():
     counts = [len(sample_scan_multi(np.random.default_rng(s), [None], U, 0.0, NOISE, 6.0, 52.2)[1]) for s in range(3000)]
     assert np.mean(counts) == pytest.approx(6.0, abs=4 * np.sqrt(6.0 / 3000))
+
+
+def _antenna():
+    from trackjam.config import load_scenario
+    from trackjam.simulation.build import antenna_model
+
+    return antenna_model(load_scenario("paper-fig3"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), k=st.integers(1, 4), n=st.integers(1, 5))
+def test_each_targets_exposure_is_what_the_one_target_engine_computes(seed, k, n):
+    from trackjam.radio.antenna import detection_probability, received_power
+
+    ant = _antenna()
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(0, 100, size=(k, 3))
+    exists, detectable = rng.uniform(size=k) < 0.8, rng.uniform(size=k) < 0.7
+    X[~exists] = np.nan
+    u = rng.uniform(0, 100, size=(n, 3))
+    aim = np.where(rng.uniform(size=(n, 1)) < 0.5, X[rng.integers(k)], rng.uniform(0, 100, size=(n, 3)))
+    aim = np.where(np.isfinite(aim), aim, u + 1.0)
+    level_w = ant.levels_w[rng.integers(len(ant.levels_w), size=n)]
+    to_target, p_d = target_exposure(X, exists, detectable, u, aim, level_w, ant)
+    assert to_target.shape == p_d.shape == (n, k)
+    for i in range(k):  # the engine's single-target lines, target by target
+        want_w = received_power(X[i], u, aim, level_w, ant) if exists[i] else np.zeros(n)
+        want_p = detection_probability(X[i], u, aim, level_w, ant) if exists[i] and detectable[i] else np.zeros(n)
+        assert np.array_equal(to_target[:, i], want_w) and np.array_equal(p_d[:, i], want_p)
+
+
+def test_an_agent_aimed_at_a_target_within_r0_detects_it_at_p_d_max():
+    ant = _antenna()
+    X = np.array([[50.0, 50.0, 50.0], [10.0, 10.0, 10.0]])
+    u = np.array([[52.0, 50.0, 50.0]])
+    to_target, p_d = target_exposure(X, [True, True], [True, True], u, X[:1], ant.levels_w[-1:], ant)
+    assert p_d[0, 0] == pytest.approx(ant.p_d_max) and to_target[0, 0] == pytest.approx(ant.l_max)
+    assert p_d[0, 1] == 0.0 and to_target[0, 1] == 0.0  # the other target is outside the cone

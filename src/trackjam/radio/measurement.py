@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from trackjam.radio.antenna import AntennaModel, detection_probability, received_power
+
 
 def wrap_angle(a):
     """Wrap angles to (-pi, pi]."""
@@ -118,3 +120,22 @@ def sample_scan_multi(
             source.append(i)
     Z = np.vstack(rows + [clutter]) if rows else clutter
     return Z.reshape(-1, 3), np.array(source + [-1] * len(clutter), dtype=np.int64)
+
+
+def target_exposure(
+    X, exists, detectable, u: np.ndarray, aim: np.ndarray, level_w: np.ndarray, ant: AntennaModel
+) -> tuple[np.ndarray, np.ndarray]:
+    """What K targets get from N transmitting agents (ours), each ``(N, K)``: the power agent j
+    puts on target k, Eq. (10) [W], 0 where the target is absent (an occluded one is still
+    jammed), and agent j's detection probability of target k, Eq. (9), 0 where the target is
+    absent or occluded. ``X`` (K, 3) true positions (rows of absent targets are not read);
+    ``u``, ``aim`` (N, 3) positions and antenna aims [m]; ``level_w`` (N,) transmit powers [W].
+    A target's column is what the one-target engine computes for it."""
+    X = np.asarray(X, dtype=float).reshape(-1, 3)
+    exists, detectable = np.asarray(exists, dtype=bool), np.asarray(detectable, dtype=bool)
+    x = np.where(exists[:, None], X, 0.0)[None, :, :]
+    u, aim = np.asarray(u, dtype=float)[:, None, :], np.asarray(aim, dtype=float)[:, None, :]
+    level = np.asarray(level_w, dtype=float)[:, None]
+    to_target = np.where(exists[None, :], received_power(x, u, aim, level, ant), 0.0)
+    p_d = np.where((exists & detectable)[None, :], detection_probability(x, u, aim, level, ant), 0.0)
+    return to_target, p_d
