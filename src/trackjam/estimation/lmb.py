@@ -1,0 +1,320 @@
+"""One agent's labelled multi-Bernoulli (LMB) particle filter (Reuter, Vo, Vo & Dietmayer, IEEE
+TSP 2014) whose tracks are the Bernoulli components of Section V-A (ours: several targets).
+
+A track is a label (the step it was born, its index among that step's births), an existence r
+and a weighted particle set of the 6-D state. Prediction: r <- p_s r, each particle moved by
+Eq. (1) (and the walls, as in the Bernoulli filter). Update with one scan: the weights eta of
+:mod:`trackjam.estimation.lmb_association` from the per-particle p_D (Eq. 9) and
+g(y | x) / (lambda_c p_c(y)), the marginals beta of the joint association hypotheses (Gibbs
+sampling or a ranked assignment), then the LMB approximation per track:
+
+    r_i' = sum_{j} beta[i, 1 + j] + beta[i, 0] r_i <1 - p_D>_i / eta[i, 0],
+    s_i'(x) ∝ [beta[i, 0] r_i (1 - p_D(x)) / eta[i, 0]
+               + sum_j beta[i, 1 + j] p_D(x) g(y_j | x) / (lambda_c p_c) / <p_D g_j / (lambda_c p_c)>_i] s_i(x)
+
+(<f>_i = ∫ f s_i). With one track this is the Bernoulli update of Section V-A exactly.
+
+Adaptive birth (Reuter et al., Sec. IV-A): measurement y_j of the scan at t starts a track that
+enters at t + 1 with existence min(r_B^max, lambda_B (1 - r_U(y_j)) / sum_y (1 - r_U(y))),
+r_U(y_j) = sum_i beta[i, 1 + j] the probability that y_j was some track's. Its density is that
+of a target seen once by this scan (ours: the single-measurement posterior
+∝ p_D(x) g(y_j | x) over the area, velocity uniform in ±v): particles from the measurement's
+Cartesian Gaussian weighted by p_D g / Gaussian, so a measurement from where the cone cannot
+detect starts no track.
+
+Tracks below the pruning threshold are dropped, the most likely ``max_tracks`` kept, and each
+track is resampled (systematic) to its particle count.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numba import njit
+from scipy.special import logsumexp
+
+from trackjam.estimation.bernoulli import Scan, weighted_moments
+from trackjam.estimation.birth import Gaussians, UniformBirth
+from trackjam.estimation.kernels import GATE, _wrap, kernel_cv_predict, kernel_reflect, kernel_systematic_indices
+from trackjam.estimation.lmb_association import association_marginals
+from trackjam.radio.antenna import AntennaModel, kernel_cone_gain
+from trackjam.radio.measurement import clutter_density
+
+DT = 1.0  # dT [s]
+BIRTH_FLOOR = 0.1  # smallest standard deviation per axis of a birth's position Gaussian [m] (ours)
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+@njit(cache=True)
+def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
+    """Per particle ``p_D`` (n,) and per particle and measurement ``log g(y_j | x_i) - log
+    kappa`` (n, m), kappa = lambda_c p_c; -inf where p_D = 0 or y_j lies GATE standard
+    deviations or more away (the gating of ``kernel_update_factors``, whose log L_i is
+    log(1 - p_D + p_D sum_j exp(.)) of these)."""
+    n = X.shape[0]
+    m = Z.shape[0]
+    p_d = np.empty(n)
+    out = np.full((n, m), -np.inf)
+    s0, s1, s2 = noise_std[0], noise_std[1], noise_std[2]
+    c_max = -1.5 * _LOG_2PI - math.log(s0) - math.log(s1) - math.log(s2) - log_kappa
+    for i in range(n):
+        pd = p_d_scale * kernel_cone_gain(
+            X[i, 0], X[i, 1], X[i, 2], u[0], u[1], u[2], axis[0], axis[1], axis[2], height, tan_half, r0, n_e
+        )
+        p_d[i] = pd
+        if pd <= 0.0:
+            continue
+        dx = X[i, 0] - u[0]
+        dy = X[i, 1] - u[1]
+        dz = X[i, 2] - u[2]
+        rho_xy = math.sqrt(dx * dx + dy * dy)
+        rho = math.sqrt(rho_xy * rho_xy + dz * dz)
+        az = math.atan2(dy, dx)
+        inc = math.atan2(rho_xy, dz)
+        for j in range(m):
+            e0 = (Z[j, 0] - rho) / s0
+            if e0 > GATE or e0 < -GATE:
+                continue
+            e1 = _wrap(Z[j, 1] - az) / s1
+            e2 = _wrap(Z[j, 2] - inc) / s2
+            d2 = e0 * e0 + e1 * e1 + e2 * e2
+            if d2 < GATE * GATE:
+                out[i, j] = c_max - 0.5 * d2
+    return p_d, out
+
+
+@dataclass(frozen=True)
+class LMBParams:
+    """What one agent's LMB filter needs: the model it assumes, its births and its budgets."""
+
+    survival_prob: float  # p_s
+    particles: int  # particles per track after an update
+    birth_particles: int  # particles of a track born around one measurement
+    birth_rate: float  # lambda_B: expected number of births per step (adaptive birth)
+    birth_existence_max: float  # r_B^max: cap on a birth's existence
+    birth_speed: float  # a birth's velocity, uniform in ±v per axis [m/s]
+    accel_var: float  # the filter's Sigma_v scale [m^2/s^4]
+    walls: str  # "reflect" | "none"
+    low: np.ndarray  # (3,) area [m]
+    high: np.ndarray
+    noise_std: np.ndarray  # (3,) Sigma_w diagonal as standard deviations
+    clutter_rate: float  # lambda_c
+    prune: float = 1e-3  # tracks with r below this are dropped
+    max_tracks: int = 50  # at most this many tracks, the most likely
+    association: str = "gibbs"  # "gibbs" | "ranked"
+    gibbs_samples: int = 1000  # Gibbs sweeps per update
+    ranked_k: int = 200  # hypotheses of the ranked assignment
+
+    def __post_init__(self):
+        if self.association not in ("gibbs", "ranked"):
+            raise ValueError(f"association must be 'gibbs' or 'ranked', got {self.association!r}")
+        if self.walls not in ("reflect", "none"):
+            raise ValueError(f"walls must be 'reflect' or 'none', got {self.walls!r}")
+        if not 0.0 < self.birth_existence_max < 1.0 or not 0.0 <= self.survival_prob <= 1.0:
+            raise ValueError("birth_existence_max must lie in (0, 1) and survival_prob in [0, 1]")
+        if min(self.particles, self.birth_particles, self.max_tracks, self.gibbs_samples, self.ranked_k) < 1:
+            raise ValueError("particle counts, max_tracks, gibbs_samples and ranked_k must be positive")
+
+
+@dataclass(frozen=True)
+class Track:
+    """One Bernoulli component: label (birth step, index), existence r, particles ``X`` (n, 6)
+    and their normalised log-weights."""
+
+    label: tuple[int, int]
+    r: float
+    X: np.ndarray
+    log_w: np.ndarray
+
+
+@dataclass(frozen=True)
+class TrackEstimate:
+    """What an agent reports of one track: its label, existence, particle mean and covariance."""
+
+    label: tuple[int, int]
+    existence: float
+    mean: np.ndarray  # (6,)
+    cov: np.ndarray  # (6, 6)
+
+
+@dataclass(frozen=True)
+class Factors:
+    """Per track of one scan: ``log_f`` (n, m + 1), column 0 log(1 - p_D), column 1 + j
+    log p_D + log g(y_j | x) / kappa, per particle; ``log_mean`` (m + 1,) their means <f_c> over
+    the track's density; ``log_eta`` (m + 1,) the track's row of eta."""
+
+    log_f: np.ndarray
+    log_mean: np.ndarray
+    log_eta: np.ndarray
+
+
+def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_kappa: float) -> Factors:
+    """The association weights of one track for one scan (the module docstring of
+    :mod:`trackjam.estimation.lmb_association`)."""
+    p_d, log_g = kernel_association_factors(
+        np.ascontiguousarray(track.X), scan.Z, scan.u, scan.axis, scan.p_d_scale, ant.height, ant.tan_half,
+        ant.r0, ant.n_e, np.asarray(noise_std, dtype=float), float(log_kappa),
+    )
+    with np.errstate(divide="ignore"):
+        log_f = np.column_stack([np.log1p(-np.minimum(p_d, 1.0)), np.log(p_d)[:, None] + log_g])
+        log_mean = logsumexp(track.log_w[:, None] + log_f, axis=0)
+        log_r, log_not = math.log(track.r) if track.r > 0 else -np.inf, math.log1p(-min(track.r, 1.0))
+    log_eta = log_r + log_mean
+    log_eta[0] = np.logaddexp(log_not, log_r + log_mean[0])
+    return Factors(log_f, log_mean, log_eta)
+
+
+def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
+    """The LMB approximation of one track after the association (the module docstring)."""
+    if track.r <= 0.0:
+        return replace(track, r=0.0)
+    log_mean = f.log_mean
+    with np.errstate(divide="ignore"):
+        log_r = math.log(track.r)
+        log_beta = np.log(beta_row)
+        # the share of "undetected" in which the track exists and was missed
+        log_coef = log_beta.copy()
+        log_coef[0] = log_beta[0] + log_r + log_mean[0] - f.log_eta[0]
+    r_new = float(np.exp(logsumexp(log_coef))) if np.any(np.isfinite(log_coef)) else 0.0
+    if r_new <= 0.0:
+        return replace(track, r=0.0)
+    usable = np.isfinite(log_coef) & np.isfinite(log_mean)
+    log_post = track.log_w + logsumexp(f.log_f[:, usable] + (log_coef[usable] - log_mean[usable]), axis=1)
+    log_post -= logsumexp(log_post)
+    return replace(track, r=min(r_new, 1.0), log_w=log_post)
+
+
+def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, log_kappa: float,
+               rng: np.random.Generator, method: str = "gibbs", samples: int = 1000, k: int = 200):
+    """The update of all tracks by one scan. Returns ``(tracks, beta, r_U)``: the posterior
+    tracks (not resampled, not pruned), the association marginals (T, m + 1) and r_U (m,), the
+    probability that each measurement was some track's."""
+    m = len(scan.Z)
+    factors = [track_factors(t, scan, ant, noise_std, log_kappa) for t in tracks]
+    log_eta = np.array([f.log_eta for f in factors]).reshape(len(tracks), m + 1)
+    beta = association_marginals(log_eta, method, rng, samples, k)
+    posterior = [posterior_track(t, f, b) for t, f, b in zip(tracks, factors, beta)]
+    return posterior, beta, beta[:, 1:].sum(axis=0)
+
+
+def birth_existences(r_U: np.ndarray, rate: float, r_max: float) -> np.ndarray:
+    """Adaptive birth's r_B(y_j) = min(r_B^max, lambda_B (1 - r_U(y_j)) / sum_y (1 - r_U(y)))."""
+    free = np.clip(1.0 - np.asarray(r_U, dtype=float), 0.0, 1.0)
+    total = free.sum()
+    if total <= 0.0:
+        return np.zeros_like(free)
+    return np.minimum(r_max, rate * free / total)
+
+
+def draw_birth(rng: np.random.Generator, scan: Scan, j: int, n: int, b: UniformBirth, ant: AntennaModel,
+               noise_std, log_kappa: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """``n`` particles of the density of a target seen once as measurement j of ``scan``,
+    ∝ p_D(x) g(y_j | x) in the area, velocity from ``b`` (uniform in ±v_b); their normalised
+    log-weights, or None when no particle could have made the measurement."""
+    G = Gaussians.of_scan(scan.Z[j:j + 1], scan.u, noise_std, 1.0, BIRTH_FLOOR)
+    X = b.draw(rng, n)
+    X[:, :3] = G.sample(rng, n)
+    p_d, log_g = kernel_association_factors(
+        X, scan.Z[j:j + 1], scan.u, scan.axis, scan.p_d_scale, ant.height, ant.tan_half, ant.r0, ant.n_e,
+        np.asarray(noise_std, dtype=float), float(log_kappa),
+    )
+    with np.errstate(divide="ignore"):
+        log_w = np.log(p_d) + log_g[:, 0] - G.log_pdf(X[:, :3])
+    log_w[~b.in_area(X[:, :3])] = -np.inf
+    if not np.any(np.isfinite(log_w)):
+        return None
+    return X, log_w - logsumexp(log_w)
+
+
+class LMBFilter:
+    """One agent's LMB filter. Call ``predict()`` then ``update(...)`` each step; ``tracks``
+    holds the current Bernoulli components."""
+
+    def __init__(self, params: LMBParams, antenna: AntennaModel, rng: np.random.Generator):
+        self.p = params
+        self.ant = antenna
+        self.rng = rng
+        self.noise_std = np.asarray(params.noise_std, dtype=float)
+        self.b = UniformBirth(np.asarray(params.low, dtype=float), np.asarray(params.high, dtype=float),
+                              float(params.birth_speed))
+        # lambda_c = 0 would make g / (lambda_c p_c) infinite; a tiny floor keeps logs finite
+        self.log_kappa = math.log(max(params.clutter_rate * clutter_density(antenna.max_range), 1e-300))
+        self.step = 0  # steps predicted so far; a track born by scan t is labelled (t + 1, j)
+        self.tracks: list[Track] = []
+        self._births: list[Track] = []  # born by the last scan, entering at the next prediction
+        self._predicted = False
+
+    def _move(self, X: np.ndarray) -> None:
+        kernel_cv_predict(X, self.rng.standard_normal((len(X), 3)), DT, math.sqrt(self.p.accel_var))
+        if self.p.walls == "reflect":
+            kernel_reflect(X, self.b.low, self.b.high)
+
+    def predict(self) -> list[TrackEstimate]:
+        """r <- p_s r and Eq. (1) for every track; the last scan's births join with r_B."""
+        self.step += 1
+        moved = []
+        for t in self.tracks:
+            X = t.X.copy()
+            self._move(X)
+            moved.append(replace(t, r=self.p.survival_prob * t.r, X=X))
+        for t in self._births:
+            X = t.X.copy()
+            self._move(X)
+            moved.append(replace(t, X=X))
+        self.tracks, self._births = moved, []
+        self._predicted = True
+        return self.estimates()
+
+    def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float) -> list[TrackEstimate]:
+        """Update by scan ``Z`` (m, 3) taken from ``u`` with the antenna aimed at ``aim`` and
+        transmitting ``level_w`` watts; then the births of this scan, pruning, the cap and
+        resampling. Runs ``predict()`` first if it was not called since the last update."""
+        if not self._predicted:
+            self.predict()
+        scan = Scan.of(Z, u, aim, level_w, self.ant)
+        p = self.p
+        posterior, _, r_U = lmb_update(self.tracks, scan, self.ant, self.noise_std, self.log_kappa, self.rng,
+                                       p.association, p.gibbs_samples, p.ranked_k)
+        kept = sorted((t for t in posterior if t.r >= p.prune), key=lambda t: -t.r)[: p.max_tracks]
+        self.tracks = [self._resampled(t) for t in kept]
+        self._births = []
+        for j, r_b in enumerate(birth_existences(r_U, p.birth_rate, p.birth_existence_max)):
+            if r_b < p.prune:
+                continue
+            drawn = draw_birth(self.rng, scan, j, p.birth_particles, self.b, self.ant, self.noise_std, self.log_kappa)
+            if drawn is not None:
+                self._births.append(Track((self.step + 1, j), float(r_b), *drawn))
+        self._predicted = False
+        return self.estimates()
+
+    def _resampled(self, t: Track) -> Track:
+        n = self.p.particles
+        idx = kernel_systematic_indices(np.exp(t.log_w), n, self.rng.uniform())
+        return replace(t, X=t.X[idx], log_w=np.full(n, -math.log(n)))
+
+    def estimates(self) -> list[TrackEstimate]:
+        """Every track's label, existence and particle moments, most likely first."""
+        out = []
+        for t in sorted(self.tracks, key=lambda t: -t.r):
+            mean, cov = weighted_moments(t.X, np.exp(t.log_w))
+            out.append(TrackEstimate(t.label, t.r, mean, cov))
+        return out
+
+    def reset_track(self, label: tuple[int, int], existence: float, mean: np.ndarray | None = None,
+                    cov: np.ndarray | None = None) -> None:
+        """Fusion feedback for one track, called after ``update()``: set its existence and, when
+        a fused Gaussian is given, redraw its particles from N(mean, cov)."""
+        for i, t in enumerate(self.tracks):
+            if t.label != label:
+                continue
+            t = replace(t, r=float(np.clip(existence, 0.0, 1.0)))
+            if mean is not None and cov is not None:
+                lam, V = np.linalg.eigh(0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T))
+                n = self.p.particles
+                X = np.asarray(mean, float) + self.rng.standard_normal((n, 6)) @ (V * np.sqrt(np.clip(lam, 0, None))).T
+                t = replace(t, X=X, log_w=np.full(n, -math.log(n)))
+            self.tracks[i] = t
+            return
+        raise KeyError(f"no track labelled {label}")

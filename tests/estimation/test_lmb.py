@@ -1,0 +1,297 @@
+"""The labelled multi-Bernoulli filter: its compiled factors, one track being the Bernoulli
+filter of Section V-A, the LMB update against every association hypothesis, adaptive birth,
+pruning, and two targets tracked under their own labels."""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from trackjam.config import load_scenario
+from trackjam.estimation.bernoulli import Scan, bernoulli_update
+from trackjam.estimation.birth import UniformBirth
+from trackjam.estimation.kernels import GATE, kernel_update_factors
+from trackjam.estimation.lmb import (
+    LMBFilter,
+    LMBParams,
+    Track,
+    birth_existences,
+    draw_birth,
+    kernel_association_factors,
+    lmb_update,
+    track_factors,
+)
+from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
+from trackjam.radio.measurement import clutter_density, h, sample_clutter, sample_scan, wrap_angle
+from trackjam.simulation.build import antenna_model
+from trackjam.world.motion import cv_matrices, cv_step
+
+S = load_scenario("paper-fig3")
+ANT = antenna_model(S)
+SIGMA = np.asarray(S.sensor.noise_std)
+LOG_KAPPA = math.log(S.sensor.clutter_rate * clutter_density(ANT.max_range))
+U = np.array([10.0, 10.0, 10.0])
+AIM = np.array([14.0, 13.0, 12.0])
+AX = axis_of(U, AIM)
+# three particles inside the cone at 5, 7 and 9 m, one outside (as in test_bernoulli.py)
+X_HAND = np.array([
+    [*(U + 5 * AX), 0, 0, 0],
+    [*(U + 7 * AX + [0.3, 0, 0]), 0, 0, 0],
+    [*(U + 9 * AX + [0, -0.4, 0.2]), 0, 0, 0],
+    [U[0] - 10, U[1], U[2], 0, 0, 0],
+])
+W_HAND = np.array([0.4, 0.3, 0.2, 0.1])
+
+
+def scan(Z, level_w=None):
+    return Scan.of(np.asarray(Z, float).reshape(-1, 3), U, AIM, ANT.l_max if level_w is None else level_w, ANT)
+
+
+def factors_twin(X, Z, level_w):
+    """Plain-numpy twin of ``kernel_association_factors``: p_D of Eq. (9) and log g - log kappa,
+    -inf where p_D = 0 or beyond the gate."""
+    p_d = detection_probability(X[:, :3], U, AIM, level_w, ANT)
+    r = Z[None, :, :] - h(X, U)[:, None, :]
+    r[..., 1:] = wrap_angle(r[..., 1:])
+    d2 = np.sum((r / SIGMA) ** 2, axis=-1)
+    log_g = -1.5 * math.log(2 * math.pi) - np.sum(np.log(SIGMA)) - 0.5 * d2 - LOG_KAPPA
+    return p_d, np.where((p_d[:, None] > 0) & (d2 < GATE**2), log_g, -np.inf)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 4), st.sampled_from([0.0, 0.3, 1.0]))
+def test_association_factors_equal_numpy_twin_and_the_bernoulli_kernel(seed, m, level):
+    rng = np.random.default_rng(seed)
+    X = np.hstack([U + rng.normal(0, 4, (200, 3)) + 4 * AX, rng.normal(0, 1, (200, 3))])
+    Z = np.array([h(X[rng.integers(200)], U) + rng.normal(0, 1, 3) * SIGMA for _ in range(m)]).reshape(-1, 3)
+    Z[:, 1] = wrap_angle(Z[:, 1])
+    level_w = level * ANT.l_max
+    sc = scan(Z, level_w)
+    p_d, log_g = kernel_association_factors(X, sc.Z, U, sc.axis, sc.p_d_scale, ANT.height, ANT.tan_half, ANT.r0,
+                                            ANT.n_e, SIGMA, LOG_KAPPA)
+    p_twin, g_twin = factors_twin(X, sc.Z, level_w)
+    np.testing.assert_allclose(p_d, p_twin, atol=1e-12)
+    np.testing.assert_array_equal(np.isfinite(log_g), np.isfinite(g_twin))
+    np.testing.assert_allclose(log_g[np.isfinite(log_g)], g_twin[np.isfinite(g_twin)], atol=1e-9)
+    # the Bernoulli filter's bracket L_i = 1 - p_D + p_D sum_j g_j / kappa, from these factors
+    _, log_L = kernel_update_factors(X, sc.Z, U, sc.axis, sc.p_d_scale, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e,
+                                     SIGMA, LOG_KAPPA)
+    L = 1 - p_d + p_d * np.exp(log_g).sum(axis=1)
+    np.testing.assert_allclose(np.log(L), log_L, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["gibbs", "ranked"])
+@pytest.mark.parametrize("r", [0.02, 0.5, 0.97])
+@pytest.mark.parametrize("Z", [
+    np.zeros((0, 3)),                                             # a miss
+    h(X_HAND[1], U)[None, :],                                     # a detection on the track
+    np.vstack([h(X_HAND[0], U) + [0.5, 0.03, -0.02], [30.0, 2.0, 2.5]]),  # a detection and clutter
+    np.array([[30.0, 2.0, 2.5], [12.0, -1.0, 0.4]]),              # clutter only
+])
+def test_one_track_is_the_bernoulli_filter(method, r, Z):
+    """K = 1: the LMB update of one track gives Section V-A's e_t and s_t exactly."""
+    e, log_post, _, _ = bernoulli_update(r, X_HAND, np.log(W_HAND), Z, U, AIM, ANT.l_max, ANT, SIGMA, LOG_KAPPA)
+    track = Track((1, 0), r, X_HAND, np.log(W_HAND))
+    (post,), beta, r_U = lmb_update([track], scan(Z), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0), method)
+    assert post.r == pytest.approx(e, rel=1e-10, abs=1e-14)
+    np.testing.assert_allclose(np.exp(post.log_w), np.exp(log_post), atol=1e-12)
+    np.testing.assert_allclose(beta.sum(), 1.0)
+    assert r_U.shape == (len(Z),)
+
+
+def brute_force_lmb(tracks, sc):
+    """The LMB posterior by enumerating every joint hypothesis: r_i' = sum over hypotheses of
+    their weight times P(track i exists | the hypothesis), s_i' the matching mixture."""
+    m = len(sc.Z)
+    p_d, g = [], []
+    for t in tracks:
+        p, lg = factors_twin(t.X, sc.Z, ANT.l_max)
+        p_d.append(p)
+        g.append(np.exp(lg))
+    hyps = [c for c in itertools.product(range(m + 1), repeat=len(tracks))
+            if len([x for x in c if x]) == len({x for x in c if x})]
+    weights, exists, dens = [], [], []
+    for c in hyps:
+        wc, ec, dc = 1.0, [], []
+        for i, t in enumerate(tracks):
+            w = np.exp(t.log_w)
+            if c[i] == 0:
+                miss = t.r * np.sum(w * (1 - p_d[i]))
+                wc *= 1 - t.r + miss
+                ec.append(miss / (1 - t.r + miss))
+                f = w * (1 - p_d[i])
+            else:
+                wc *= t.r * np.sum(w * p_d[i] * g[i][:, c[i] - 1])
+                ec.append(1.0)
+                f = w * p_d[i] * g[i][:, c[i] - 1]
+            dc.append(f / f.sum() if f.sum() > 0 else f)
+        weights.append(wc)
+        exists.append(ec)
+        dens.append(dc)
+    weights = np.array(weights) / np.sum(weights)
+    out = []
+    for i in range(len(tracks)):
+        r_i = sum(wc * ec[i] for wc, ec in zip(weights, exists))
+        s_i = sum(wc * ec[i] * dc[i] for wc, ec, dc in zip(weights, exists, dens)) / r_i
+        out.append((r_i, s_i))
+    return out
+
+
+@pytest.mark.parametrize("method", ["gibbs", "ranked"])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_two_tracks_equal_the_enumeration_of_hypotheses(method, seed):
+    """Two overlapping tracks and 2-3 measurements near both: per-track existence and density
+    equal those of the enumeration (ranked: k covers every hypothesis, so exactly; Gibbs: 2000
+    sweeps miss only hypotheses of negligible weight)."""
+    rng = np.random.default_rng(seed)
+    tracks = []
+    for i, dist in enumerate((6.0, 8.0)):
+        X = np.hstack([U + dist * AX + rng.normal(0, 0.8, (50, 3)), rng.normal(0, 1, (50, 3))])
+        tracks.append(Track((1, i), float(rng.uniform(0.2, 0.9)), X, np.full(50, -math.log(50))))
+    m = int(rng.integers(2, 4))
+    Z = np.array([h(U + rng.uniform(5.5, 8.5) * AX, U) + rng.normal(0, 1, 3) * SIGMA for _ in range(m)])
+    sc = scan(Z)
+    post, beta, r_U = lmb_update(tracks, sc, ANT, SIGMA, LOG_KAPPA, rng, method, samples=2000, k=1000)
+    tol = 1e-9 if method == "ranked" else 1e-3
+    for t, (r_i, s_i) in zip(post, brute_force_lmb(tracks, sc)):
+        assert t.r == pytest.approx(r_i, abs=tol)
+        np.testing.assert_allclose(np.exp(t.log_w), s_i, atol=tol)
+    np.testing.assert_allclose(r_U, beta[:, 1:].sum(axis=0))
+
+
+def test_adaptive_birth_existence():
+    """r_B = min(r_max, lambda_B (1 - r_U) / sum(1 - r_U)); a measurement surely some track's
+    starts nothing."""
+    r_U = np.array([1.0, 0.0, 0.5, 0.5])
+    np.testing.assert_allclose(birth_existences(r_U, 0.2, 0.5), [0.0, 0.1, 0.05, 0.05])
+    np.testing.assert_allclose(birth_existences(r_U, 10.0, 0.3), [0.0, 0.3, 0.3, 0.3])
+    np.testing.assert_array_equal(birth_existences(np.ones(2), 1.0, 0.5), [0.0, 0.0])
+
+
+def test_birth_is_the_posterior_of_one_measurement():
+    """Particles of a birth sit where the measurement says (their weighted mean is h^{-1}(y)
+    within the noise), and a measurement from outside the cone starts no track."""
+    b = UniformBirth(np.zeros(3), np.full(3, 100.0), 3.0)
+    rng = np.random.default_rng(4)
+    p = U + 6 * AX
+    sc = scan(h(p, U)[None, :])
+    X, log_w = draw_birth(rng, sc, 0, 4000, b, ANT, SIGMA, LOG_KAPPA)
+    w = np.exp(log_w)
+    assert w.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(w @ X[:, :3], p, atol=0.3)
+    assert np.all(np.abs(X[:, 3:]) <= 3.0)
+    behind = scan(h(U - 6 * AX, U)[None, :])
+    assert draw_birth(rng, behind, 0, 500, b, ANT, SIGMA, LOG_KAPPA) is None
+
+
+def params(**kw):
+    base = dict(survival_prob=0.98, particles=1500, birth_particles=1500, birth_rate=0.1, birth_existence_max=0.1,
+                birth_speed=3.0, accel_var=0.5, walls="reflect", low=np.zeros(3), high=np.full(3, 100.0),
+                noise_std=SIGMA, clutter_rate=5.0)
+    base.update(kw)
+    return LMBParams(**base)
+
+
+def test_prediction_is_survival_and_eq1():
+    """r <- p_s r; without process noise every particle moves by Phi of Eq. (1)."""
+    f = LMBFilter(params(accel_var=0.0, walls="none"), ANT, np.random.default_rng(0))
+    f.tracks = [Track((1, 0), 0.6, X_HAND.copy() + [0, 0, 0, 1.0, -0.5, 0.2], np.log(W_HAND))]
+    before = f.tracks[0].X.copy()
+    f.predict()
+    assert f.tracks[0].r == pytest.approx(0.98 * 0.6)
+    Phi, _ = cv_matrices(1.0)
+    np.testing.assert_allclose(f.tracks[0].X, before @ Phi.T)
+
+
+def test_pruning_and_the_cap_keep_the_most_likely():
+    f = LMBFilter(params(max_tracks=2, prune=0.05), ANT, np.random.default_rng(0))
+    f.tracks = [Track((1, i), r, X_HAND.copy(), np.log(W_HAND)) for i, r in enumerate([0.3, 0.9, 0.04, 0.6])]
+    f.update(np.zeros((0, 3)), np.array([90.0, 90.0, 90.0]), np.array([95.0, 95.0, 95.0]), ANT.l_max)
+    assert [t.label for t in f.tracks] == [(1, 1), (1, 3)]  # out of the cone: only p_s, then the cap
+    assert all(len(t.X) == 1500 for t in f.tracks)
+
+
+def test_reset_track_sets_existence_and_redraws():
+    f = LMBFilter(params(particles=20_000), ANT, np.random.default_rng(0))
+    f.tracks = [Track((3, 1), 0.4, X_HAND.copy(), np.log(W_HAND))]
+    mean, cov = np.arange(6.0), np.diag([1.0, 2.0, 3.0, 0.5, 0.5, 0.0])
+    f.reset_track((3, 1), 0.8, mean, cov)
+    (est,) = f.estimates()
+    assert est.existence == 0.8
+    np.testing.assert_allclose(est.mean, mean, atol=0.05)
+    np.testing.assert_allclose(est.cov, cov, atol=0.1)
+    with pytest.raises(KeyError):
+        f.reset_track((9, 9), 0.5)
+
+
+# two targets 20 m apart, one agent pointing between them; the antenna's R_0 is 30 m so that both
+# are detected (at the paper's R_0 = 6 m, p_D would be 0.14 there)
+SCENE_ANT = AntennaModel(height=40.0, half_angle=math.radians(40.0), r0=30.0, n_e=2.0, p_d_max=0.95,
+                         levels_w=np.array([0.0, 1.0]), delta_w=1e-4)
+SCENE_U = np.array([50.0, 50.0, 10.0])
+SCENE_AIM = np.array([50.0, 50.0, 40.0])
+
+
+def two_target_run(seed: int, steps: int = 12, method: str = "gibbs"):
+    rng_truth, rng_filter = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    x = np.array([[40.0, 50.0, 35.0, 0.0, 0.3, 0.0], [60.0, 50.0, 35.0, 0.1, -0.2, 0.1]])
+    f = LMBFilter(params(association=method), SCENE_ANT, rng_filter)
+    truths, confirmed = [], []
+    for _ in range(steps):
+        x = cv_step(x, rng_truth, 0.002)
+        Z = [sample_scan(rng_truth, x[k, :3], SCENE_U, float(detection_probability(
+            x[k, :3], SCENE_U, SCENE_AIM, 1.0, SCENE_ANT)), SIGMA, 0.0, SCENE_ANT.max_range)[0] for k in range(2)]
+        Z.append(sample_clutter(rng_truth, 5.0, SCENE_ANT.max_range))
+        f.predict()
+        est = f.update(np.vstack(Z), SCENE_U, SCENE_AIM, 1.0)
+        truths.append(x[:, :3].copy())
+        confirmed.append([(e.label, e.mean[:3]) for e in est if e.existence > 0.5])
+    return truths, confirmed
+
+
+def check_two_targets(truths, confirmed):
+    """Every confirmed track lies within 5 m of a target, each target is held under one label
+    only, both are confirmed by step 5 and at each of the last 5 steps."""
+    label_target = {}
+    for x, conf in zip(truths, confirmed):
+        assert np.linalg.norm(x[0] - x[1]) > 15.0
+        for label, pos in conf:
+            d = np.linalg.norm(x - pos, axis=1)
+            assert d.min() < 5.0, f"track {label} is {d.min():.1f} m from the nearest target"
+            assert label_target.setdefault(label, int(d.argmin())) == d.argmin(), f"track {label} changed target"
+    assert sorted(label_target.values()) == [0, 1], f"labels per target: {label_target}"
+    both = [len(conf) == 2 for conf in confirmed]
+    assert any(both[:5]) and all(both[-5:])
+
+
+@pytest.mark.parametrize("method", ["gibbs", "ranked"])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_two_targets_confirmed_and_labels_stay(method, seed):
+    check_two_targets(*two_target_run(seed, method=method))
+
+
+def test_same_seed_same_tracks():
+    a, b = two_target_run(7, steps=6), two_target_run(7, steps=6)
+    for ca, cb in zip(a[1], b[1]):
+        assert [lab for lab, _ in ca] == [lab for lab, _ in cb]
+        for (_, pa), (_, pb) in zip(ca, cb):
+            np.testing.assert_array_equal(pa, pb)
+
+
+def test_track_factors_of_an_empty_scan():
+    """No measurement: eta holds only the undetected column, 1 - r + r <1 - p_D>."""
+    t = Track((1, 0), 0.7, X_HAND, np.log(W_HAND))
+    f = track_factors(t, scan(np.zeros((0, 3))), ANT, SIGMA, LOG_KAPPA)
+    p_d = detection_probability(X_HAND[:, :3], U, AIM, ANT.l_max, ANT)
+    assert f.log_eta.shape == (1,)
+    assert math.exp(f.log_eta[0]) == pytest.approx(0.3 + 0.7 * W_HAND @ (1 - p_d))
+
+
+def test_bad_parameters_are_refused():
+    with pytest.raises(ValueError, match="association"):
+        params(association="enumerate")
+    with pytest.raises(ValueError, match="birth_existence_max"):
+        params(birth_existence_max=1.0)

@@ -1,0 +1,160 @@
+"""The LMB update's data association: Gibbs sampling and Murty's ranked assignment against the
+enumeration of every joint hypothesis on small cases."""
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from trackjam.estimation.lmb_association import (
+    association_marginals,
+    best_hypothesis,
+    gibbs_hypotheses,
+    hypothesis_log_weights,
+    kernel_gibbs,
+    marginals,
+    ranked_hypotheses,
+)
+
+
+def all_hypotheses(T: int, m: int) -> np.ndarray:
+    """Every joint hypothesis: each track undetected (0) or on a measurement (1 + j), no
+    measurement used twice."""
+    out = [g for g in itertools.product(range(m + 1), repeat=T)
+           if len([c for c in g if c > 0]) == len({c for c in g if c > 0})]
+    return np.array(out, dtype=np.int64).reshape(-1, T)
+
+
+def brute_force_marginals(log_eta: np.ndarray) -> np.ndarray:
+    T, m1 = log_eta.shape
+    hyps = all_hypotheses(T, m1 - 1)
+    w = np.exp([sum(log_eta[i, g[i]] for i in range(T)) for g in hyps])
+    w /= w.sum()
+    beta = np.zeros((T, m1))
+    for g, wg in zip(hyps, w):
+        for i in range(T):
+            beta[i, g[i]] += wg
+    return beta
+
+
+def gibbs_twin(log_eta, start, uniforms):
+    """Plain-numpy twin of ``kernel_gibbs``."""
+    S, T = uniforms.shape
+    g = start.copy()
+    out = np.empty((S, T), dtype=np.int64)
+    for s in range(S):
+        for i in range(T):
+            taken = {c for k, c in enumerate(g) if k != i and c > 0}
+            allowed = np.array([c == 0 or c not in taken for c in range(log_eta.shape[1])])
+            p = np.where(allowed, np.exp(log_eta[i] - log_eta[i][allowed].max()), 0.0)
+            cum = np.cumsum(p)
+            pos = np.flatnonzero(uniforms[s, i] * cum[-1] < cum)
+            g[i] = pos[0] if len(pos) else np.flatnonzero(p > 0)[-1]
+        out[s] = g
+    return out
+
+
+def log_eta_strategy(max_tracks=2, max_meas=3):
+    shapes = st.tuples(st.integers(1, max_tracks), st.integers(0, max_meas)).map(lambda tm: (tm[0], tm[1] + 1))
+    return shapes.flatmap(lambda shape: arrays(float, shape, elements=st.floats(-4.0, 4.0)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(log_eta_strategy(), st.integers(0, 2**32 - 1))
+def test_gibbs_kernel_equals_numpy_twin(log_eta, seed):
+    rng = np.random.default_rng(seed)
+    start = best_hypothesis(log_eta)
+    U = rng.random((30, log_eta.shape[0]))
+    np.testing.assert_array_equal(kernel_gibbs(log_eta, start, U), gibbs_twin(log_eta, start, U))
+
+
+@settings(max_examples=40, deadline=None)
+@given(log_eta_strategy(2, 3))
+def test_ranked_with_k_all_equals_enumeration_exactly(log_eta):
+    T, m1 = log_eta.shape
+    n_all = len(all_hypotheses(T, m1 - 1))
+    hyps = ranked_hypotheses(log_eta, k=10_000)
+    assert len(hyps) == n_all == len(np.unique(hyps, axis=0))
+    np.testing.assert_allclose(marginals(log_eta, hyps), brute_force_marginals(log_eta), rtol=0, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(log_eta_strategy(3, 3), st.integers(1, 6))
+def test_ranked_gives_the_k_best_in_order(log_eta, k):
+    T, m1 = log_eta.shape
+    every = all_hypotheses(T, m1 - 1)
+    w_all = np.sort(hypothesis_log_weights(log_eta, every))[::-1]
+    hyps = ranked_hypotheses(log_eta, k)
+    w = hypothesis_log_weights(log_eta, hyps)
+    assert len(hyps) == min(k, len(every))
+    np.testing.assert_allclose(w, w_all[: len(hyps)], atol=1e-9)
+    if len(w_all) < 2 or w_all[0] - w_all[1] > 1e-9:  # a unique best
+        np.testing.assert_array_equal(best_hypothesis(log_eta), hyps[0])
+
+
+@settings(max_examples=30, deadline=None)
+@given(log_eta_strategy(2, 3), st.integers(0, 2**32 - 1))
+def test_gibbs_marginals_equal_enumeration(log_eta, seed):
+    """The distinct hypotheses visited, each with its exact weight: 1000 sweeps visit every
+    hypothesis of weight 1 % or more, and the marginals then differ from the enumeration's by
+    at most twice the weight of the hypotheses never visited."""
+    visited = gibbs_hypotheses(log_eta, 1000, np.random.default_rng(seed))
+    every = all_hypotheses(log_eta.shape[0], log_eta.shape[1] - 1)
+    p = np.exp(hypothesis_log_weights(log_eta, every))
+    p /= p.sum()
+    seen = np.array([any(np.array_equal(g, v) for v in visited) for g in every])
+    assert np.all(seen[p >= 0.01])
+    beta = association_marginals(log_eta, "gibbs", np.random.default_rng(seed), samples=1000)
+    assert np.abs(beta - brute_force_marginals(log_eta)).max() <= 2 * p[~seen].sum() + 1e-12
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gibbs_visits_hypotheses_in_proportion_to_their_weight(seed):
+    """The sampler's stationary distribution is the hypotheses' normalised weights: the share of
+    sweeps on each hypothesis matches it within Monte Carlo error."""
+    rng = np.random.default_rng(seed)
+    log_eta = rng.uniform(-1.5, 1.5, size=(2, 4))
+    every = all_hypotheses(2, 3)
+    p = np.exp(hypothesis_log_weights(log_eta, every))
+    p /= p.sum()
+    S = 20_000
+    drawn = kernel_gibbs(log_eta, best_hypothesis(log_eta), rng.random((S, 2)))
+    freq = np.array([np.mean(np.all(drawn == g, axis=1)) for g in every])
+    # consecutive sweeps are correlated: allow a few times the independent standard error
+    assert np.all(np.abs(freq - p) < 6 * np.sqrt(p * (1 - p) / S) + 2e-3)
+
+
+def test_forbidden_and_certain_entries():
+    """eta = 0 (log -inf) is never chosen; a track certain to be detected still has an
+    undetected hypothesis (the floor), so the marginals stay defined."""
+    log_eta = np.array([[-np.inf, 0.0, -np.inf], [0.0, -np.inf, 1.0]])
+    for method in ("gibbs", "ranked"):
+        beta = association_marginals(log_eta, method, np.random.default_rng(0), samples=200)
+        assert beta[0, 1] == pytest.approx(1.0)
+        assert beta[0, 2] == 0.0 and beta[1, 1] == 0.0
+        np.testing.assert_allclose(beta.sum(axis=1), 1.0)
+    assert association_marginals(np.zeros((0, 3)), "gibbs", np.random.default_rng(0)).shape == (0, 3)
+    with pytest.raises(ValueError, match="association method"):
+        association_marginals(log_eta, "all", np.random.default_rng(0))
+
+
+def test_many_tracks_scale_without_enumeration():
+    """20 tracks and 15 measurements have more than 10^23 hypotheses; both methods answer, the
+    most likely hypothesis is among the ranked ones first, and every row sums to 1."""
+    rng = np.random.default_rng(5)
+    log_eta = rng.normal(0.0, 2.0, size=(20, 16))
+    ranked = ranked_hypotheses(log_eta, 30)
+    assert len(np.unique(ranked, axis=0)) == 30
+    np.testing.assert_array_equal(ranked[0], best_hypothesis(log_eta))
+    w = hypothesis_log_weights(log_eta, ranked)
+    assert np.all(np.diff(w) <= 1e-9)
+    hyps = gibbs_hypotheses(log_eta, 500, rng)
+    assert any(np.array_equal(h, ranked[0]) for h in hyps)
+    assert hypothesis_log_weights(log_eta, hyps).max() == pytest.approx(w[0])
+    for method in ("gibbs", "ranked"):
+        beta = association_marginals(log_eta, method, rng, samples=500, k=30)
+        np.testing.assert_allclose(beta.sum(axis=1), 1.0)
+        assert np.all(beta[:, 1:].sum(axis=0) <= 1.0 + 1e-9)  # a measurement is some track's at most once
