@@ -25,7 +25,7 @@ from trackjam.estimation.lmb import (
     track_factors,
 )
 from trackjam.radio.antenna import AntennaModel, axis_of, detection_probability
-from trackjam.radio.measurement import clutter_density, h, sample_clutter, sample_scan, wrap_angle
+from trackjam.radio.measurement import clutter_density, h, sample_scan_multi, wrap_angle
 from trackjam.simulation.build import antenna_model
 from trackjam.world.motion import cv_matrices, cv_step
 
@@ -242,11 +242,10 @@ def two_target_run(seed: int, steps: int = 12, method: str = "gibbs"):
     truths, confirmed = [], []
     for _ in range(steps):
         x = cv_step(x, rng_truth, 0.002)
-        Z = [sample_scan(rng_truth, x[k, :3], SCENE_U, float(detection_probability(
-            x[k, :3], SCENE_U, SCENE_AIM, 1.0, SCENE_ANT)), SIGMA, 0.0, SCENE_ANT.max_range)[0] for k in range(2)]
-        Z.append(sample_clutter(rng_truth, 5.0, SCENE_ANT.max_range))
+        p_d = detection_probability(x[:, :3], SCENE_U, SCENE_AIM, 1.0, SCENE_ANT)
+        Z, _ = sample_scan_multi(rng_truth, x[:, :3], SCENE_U, p_d, SIGMA, 5.0, SCENE_ANT.max_range)
         f.predict()
-        est = f.update(np.vstack(Z), SCENE_U, SCENE_AIM, 1.0)
+        est = f.update(Z, SCENE_U, SCENE_AIM, 1.0)
         truths.append(x[:, :3].copy())
         confirmed.append([(e.label, e.mean[:3]) for e in est if e.existence > 0.5])
     return truths, confirmed
