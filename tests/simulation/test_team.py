@@ -177,3 +177,22 @@ def test_a_spread_out_track_is_not_reported():
         assert np.all(np.isnan(tight.steps[f"est_{a}"]))
     assert np.any(np.isfinite(base.steps["est_x"]))
     np.testing.assert_array_equal(tight.steps["existence"], base.steps["existence"])
+
+
+def test_a_team_that_believes_the_target_hidden_does_not_report_it(monkeypatch):
+    """filter.visibility: the report needs P(exists and visible) > 0.5, the set the OSPA judges;
+    without the mode the report is the paper's e_hat > 0.5."""
+    from trackjam.estimation.fusion import FusedEstimate
+    from trackjam.simulation.engine import Simulation, seen
+    from trackjam.simulation.team import Team
+
+    mean, cov = np.arange(6.0), np.eye(6)
+    assert seen(FusedEstimate(0.9, mean, cov, np.ones(1))) == 0.9
+    assert seen(FusedEstimate(0.9, mean, cov, np.ones(1), visible=0.5)) == pytest.approx(0.45)
+    reports = []
+    for visible in (None, 0.9, 0.5):
+        monkeypatch.setattr(Team, "fuse", lambda self, posteriors, v=visible: FusedEstimate(0.9, mean, cov, np.ones(1), v))
+        reports.append(Simulation(load_scenario("paper-fig3", FAST)).step().step["estimate"])
+    np.testing.assert_array_equal(reports[0], mean[:3])
+    np.testing.assert_array_equal(reports[1], mean[:3])
+    assert reports[2] is None

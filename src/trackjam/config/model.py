@@ -346,7 +346,8 @@ class Filter(_Model):
     visibility: Visibility | None = Field(
         None,
         description="hidden-target mode (ours): {hide, reappear} per-step probabilities; misses are then explained by "
-        "a target out of sight as well as by one that died; null: the paper's filter, every existing target visible",
+        "a target out of sight as well as by one that died, and the team reports a target while P(exists and visible) > 0.5; "
+        "null: the paper's filter, every existing target visible",
     )
 
 

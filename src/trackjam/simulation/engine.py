@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from trackjam.estimation.fusion import CONFIRM
+from trackjam.estimation.fusion import CONFIRM, FusedEstimate
 from trackjam.metrics.ospa import ospa
 from trackjam.metrics.summary import summarise
 from trackjam.radio.antenna import detection_probability, interference_matrix, received_power
@@ -61,6 +61,13 @@ class RunResult:
     agents: dict[str, np.ndarray]
     measurements: dict[str, np.ndarray]
     summary: dict
+
+
+def seen(fused: FusedEstimate) -> float:
+    """P(a detectable target exists): e_hat, times P(visible) under a hidden-target mode. The
+    team reports what it believes it could detect, the set the OSPA and the track quality judge
+    (an occluded target counts as absent there)."""
+    return fused.existence * (1.0 if fused.visible is None else fused.visible)
 
 
 def located(cov: np.ndarray, spread: float | None) -> bool:
@@ -115,7 +122,7 @@ class Simulation:
         fused = team.fuse(posteriors)
         report = next((d for d in decisions if d.mode != "down"), decisions[0])
         existence = np.nan if fused is None else fused.existence
-        est = fused.mean[:3] if (fused is not None and fused.existence > CONFIRM and fused.mean is not None
+        est = fused.mean[:3] if (fused is not None and fused.mean is not None and seen(fused) > CONFIRM
                                  and located(fused.cov, c.report_spread)) else None
         truth_set = truth.position if truth.detectable else None
         err = ospa(truth_set, est, c=c.ospa_cutoff, p=c.ospa_order)
