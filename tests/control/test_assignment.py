@@ -184,3 +184,19 @@ def test_greedy_takes_each_agents_best_pd_over_every_target(antenna):
             n = P.n_cand[i]
             best = max(P.targets[k].p_d[i, :n].max() for k in range(P.n_targets))
             assert P.targets[sol.target[i]].p_d[i, slots(P, sol)[i], sol.level[i]] == best
+
+
+def test_agents_are_placed_by_what_they_add_to_the_targets_coverage(antenna):
+    from trackjam.control.assignment_exact import agent_order
+
+    rng = np.random.default_rng(12)
+    P1 = random_assignment(rng, antenna, 4, 1, 2)
+    assert agent_order(P1).tolist() == [0, 1, 2, 3]
+    for trial in range(5):
+        P = random_assignment(rng, antenna, 4, 2, 2, spread=10.0)
+        order = agent_order(P)
+        best = P.pz.max(axis=2).T  # (N, K)
+        assert sorted(order.tolist()) == [0, 1, 2, 3]
+        assert best[order[0]].max() == best.max()
+        miss = 1.0 - best[order[0]]
+        assert (best[order[1]] * miss).max() == max((best[j] * miss).max() for j in order[1:])

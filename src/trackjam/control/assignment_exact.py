@@ -1,13 +1,20 @@
 """The proven optimum of the K-target decision (:mod:`assignment_problem`) by branch and bound
 (ours), with the one-target solver's time budget and certified gap.
 
-Agents are placed in index order. Each agent's choices form K blocks, one per target, in target
-order; within block k its (candidate, level) pairs come in the one-target order (p_D at x_bar_k
-descending, then lower level, then lower move: :func:`pair_order`). With K = 1 this is exactly
-the one-target search, so it returns the same plan. Eq. (13) is forward-checked as there, with
-the one-target kernels over extended candidates (slot c aimed at x_bar_k).
+With K = 1 agents are placed in index order; with K > 1 the agents that can matter most come
+first: greedily, the one whose best p_D adds most to the targets' chance of being seen by some
+placed agent (:func:`agent_order`). On the benchmark's K = 2, N = 4 instances, sorting by best
+p_D alone searched 35 times fewer nodes in total than index order (60 instances), and this
+order halved the total again (200 instances per objective), mostly on the hardest ones.
+Each agent's choices form K blocks, one per target, in target order; within block k its
+(candidate, level) pairs come in the one-target order (p_D at x_bar_k descending, then lower
+level, then lower move: :func:`pair_order`). The result is the
+first optimum in this order (improvements must be strict; the start is every agent hovering at
+level 0 serving target 0); with K = 1 this is exactly the one-target search, so it returns its
+plan. Eq. (13) is forward-checked as there, with the one-target kernels over extended
+candidates (slot c aimed at x_bar_k).
 
-The bound. At depth d (agents 0..d-1 placed) every unplaced agent j > d has, per target k, its
+The bound. At depth d (d agents placed) every unplaced agent j has, per target k, its
 best p_D b_jk among pairs still admissible against the placed agents (none: it cannot serve k).
 If a completion sends a_k unplaced agents to target k, Xi_k is at most U_k(a_k): Xi of the
 placed servers of k and the a_k largest b_jk, with threshold min(n, m_k + a_k) (Xi rises with
@@ -135,18 +142,23 @@ def kernel_pair_bound(d, k, x, kind, A, B, R, n_agents):
 
 
 @njit(cache=True)
-def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, ps, rank_c, rank_l, rank_pair,
-                         blk, n_pairs, rows, have, c, lv, rank, tg, pp, pair, recv, bptr, cur, A, B, R,
-                         best_pair, best_target, state, best_value, max_nodes):
+def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent, ps, rank_c, rank_l,
+                         rank_pair, blk, n_pairs, rows, have, c, lv, rank, tg, pp, pair, recv, bptr, cur,
+                         A, B, R, best_pair, best_target, state, best_value, max_nodes):
     """Maximise the team objective subject to Eq. (13) (when ``constrained``), resumably.
 
-    ``ps[i, r]`` is p_D of agent i's choice of rank r (block r // blk[i] is its target),
-    ``rank_c``/``rank_l`` its extended candidate and level, ``rank_pair`` its pair c * L + l;
+    Depth d places agent ``agent[d]``: ``gain`` and the rank tables are in placing order, ``pz``
+    and the incumbent ``best_pair``/``best_target`` in agent order (a plan's value is computed
+    in agent order, as :func:`assignment_value` does). ``ps[d, r]`` is p_D of the choice of rank
+    r (block r // blk[d] is its target), ``rank_c``/``rank_l`` its extended candidate and level,
+    ``rank_pair`` its pair c * L + l;
     ``state`` = [depth, nodes], ``best_value`` = [incumbent]; with the other arrays they are the
     whole search state. Runs at most ``max_nodes`` more nodes (all when <= 0); True when done.
     """
     N = n_pairs.shape[0]
     kk = np.empty(N, dtype=np.int64)
+    op = np.empty(N, dtype=np.int64)
+    ot = np.empty(N, dtype=np.int64)
     pw = np.empty(N)
     q = np.empty(n + 1)
     d = state[0]
@@ -190,11 +202,14 @@ def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, ps, ra
                     recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
                 recv[d, d] = inc
             if d == N - 1:
-                value = kernel_targets_value(pz, n, kind, pair, tg, kk, pw, q)
+                for j in range(N):
+                    op[agent[j]] = pair[j]
+                    ot[agent[j]] = tg[j]
+                value = kernel_targets_value(pz, n, kind, op, ot, kk, pw, q)
                 if value > best:
                     best = value
-                    best_pair[:] = pair
-                    best_target[:] = tg
+                    best_pair[:] = op
+                    best_target[:] = ot
                 cur[d] = end  # later pairs of the block have lower or equal p_D
                 continue
             if constrained and not have[d, r]:
@@ -240,13 +255,34 @@ def kernel_start(pz, gain, levels_w, delta, n, kind, constrained, n_agents):
                                 np.empty(n_agents), np.empty(n + 1))
 
 
+def agent_order(problem: AssignmentProblem) -> np.ndarray:
+    """The order the search places the agents in: index order for one target; else, greedily,
+    the agent adding most to sum_k P(some placed agent detects k), each agent at its best p_D
+    b_ik per target (score max_k b_ik prod_placed (1 - b_jk); ties to the lower index)."""
+    N = problem.n_agents
+    if problem.n_targets == 1:
+        return np.arange(N)
+    best = problem.pz.max(axis=2).T  # (N, K)
+    miss = np.ones(problem.n_targets)
+    left = list(range(N))
+    order = []
+    while left:
+        i = left[int(np.argmax([(best[j] * miss).max() for j in left]))]
+        order.append(i)
+        left.remove(i)
+        miss = miss * (1.0 - best[i])
+    return np.array(order, dtype=np.int64)
+
+
 class AssignmentSearch:
     """One exact search over an :class:`AssignmentProblem`, run in chunks."""
 
     def __init__(self, problem: AssignmentProblem):
         self.problem = problem
         N, K, C, L = problem.n_agents, problem.n_targets, problem.n_slots, problem.n_levels
-        self.blk = problem.n_cand * L
+        self.agent = agent_order(problem)
+        self.gain = np.ascontiguousarray(problem.gain[np.ix_(self.agent, self.agent)])
+        self.blk = problem.n_cand[self.agent] * L
         self.n_pairs = K * self.blk
         P = int(self.n_pairs.max())
         self.rank_c = np.zeros((N, P), dtype=np.int64)
@@ -255,13 +291,13 @@ class AssignmentSearch:
         self.ps = np.zeros((N, P))
         for k, Pk in enumerate(problem.targets):
             order, _ = pair_order(Pk)
-            for i in range(N):
-                b = int(self.blk[i])
+            for d, i in enumerate(self.agent):
+                b = int(self.blk[d])
                 o = order[i, :b]
-                self.rank_c[i, k * b:(k + 1) * b] = k * C + o // L
-                self.rank_l[i, k * b:(k + 1) * b] = o % L
-                self.rank_pair[i, k * b:(k + 1) * b] = o
-                self.ps[i, k * b:(k + 1) * b] = problem.pz[k, i, o]
+                self.rank_c[d, k * b:(k + 1) * b] = k * C + o // L
+                self.rank_l[d, k * b:(k + 1) * b] = o % L
+                self.rank_pair[d, k * b:(k + 1) * b] = o
+                self.ps[d, k * b:(k + 1) * b] = problem.pz[k, i, o]
         constrained = problem.constraints
         W = (P + 63) // 64 if constrained else 1
         self.rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
@@ -300,7 +336,7 @@ class AssignmentSearch:
         P = self.problem
         if not self.finished:
             self.finished = bool(kernel_assignment_bb(
-                P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind, P.constraints, self.ps,
+                P.pz, self.gain, P.levels_w, P.delta_w, P.at_least, P.kind, P.constraints, self.agent, self.ps,
                 self.rank_c, self.rank_l, self.rank_pair, self.blk, self.n_pairs, self.rows, self.have,
                 self.c, self.lv, self.rank, self.tg, self.pp, self.pair, self.recv, self.bptr, self.cur,
                 self.A, self.B, self.R, self.best_pair, self.best_target, self.state, self.best_value,
@@ -369,8 +405,8 @@ def solve_assignment_exact(problem: AssignmentProblem, time_limit_s: float | Non
 
 def enumerate_assignment(problem: AssignmentProblem) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """Plain-numpy enumeration of every (candidate, level, target) of every agent, in the
-    search's order (small instances only): (value, candidate slots, levels, targets), with the
-    search's starting incumbent and ties."""
+    search's order (small instances only, agents in :func:`agent_order`): (value, candidate
+    slots, levels, targets), with the search's starting incumbent and ties."""
     N, K, L = problem.n_agents, problem.n_targets, problem.n_levels
     orders = [pair_order(P)[0] for P in problem.targets]
     tgt, prs = [], []  # each agent's choices in the search's order: target blocks, pair ranks
@@ -378,7 +414,11 @@ def enumerate_assignment(problem: AssignmentProblem) -> tuple[float, np.ndarray,
         b = int(problem.n_cand[i]) * L
         tgt.append(np.repeat(np.arange(K), b))
         prs.append(np.concatenate([orders[k][i, :b] for k in range(K)]))
-    idx = np.stack([g.ravel() for g in np.meshgrid(*[np.arange(len(t)) for t in tgt], indexing="ij")], axis=-1)
+    first = agent_order(problem)  # the slowest-varying agent first
+    grids = np.meshgrid(*[np.arange(len(tgt[i])) for i in first], indexing="ij")
+    idx = np.empty((grids[0].size, N), dtype=np.int64)
+    for d, i in enumerate(first):
+        idx[:, i] = grids[d].ravel()
     target = np.stack([tgt[i][idx[:, i]] for i in range(N)], axis=-1)
     pair = np.stack([prs[i][idx[:, i]] for i in range(N)], axis=-1)
     value, ok = assignment_value(problem, pair // L, pair % L, target)
