@@ -210,3 +210,15 @@ def test_an_abort_outside_a_command_is_one_line_and_exit_130(monkeypatch, capsys
         cli.app()
     assert exit_.value.code == 130
     assert capsys.readouterr().err.strip() == "trackjam: interrupted"
+
+
+def test_a_run_with_several_targets_is_refused_until_the_engine_simulates_them(tmp_path):
+    """`targets:` with K > 1 validates, but a run would silently follow only the first target:
+    one line naming the key, exit 2, nothing written."""
+    f = tmp_path / "two.yaml"
+    f.write_text("targets:\n  - {id: a}\n  - {id: b, initial: [60, 60, 60, -1, 0, 0]}\nsteps: 2\n")
+    assert runner.invoke(app, ["validate", str(f)]).exit_code == 0
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", str(f), "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 2 and "targets: 2 targets given" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()

@@ -19,6 +19,7 @@ import numpy as np
 from trackjam.config import Scenario, load_scenario, scenario_to_yaml  # noqa: F401  (load_scenario: handed on)
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
+from trackjam.errors import ConfigError
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
@@ -143,6 +144,11 @@ class Components:
 
 
 def build(s: Scenario) -> Components:
+    if len(s.target_list) > 1:
+        raise ConfigError(
+            f"targets: {len(s.target_list)} targets given, but a run simulates one target so far (the multi-target "
+            "truth, filter and control are building blocks not yet wired into the engine); give one"
+        )
     c = s.control
     return Components(
         name=s.name,
