@@ -33,11 +33,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
-from scipy.special import logsumexp
 
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
-from trackjam.estimation.kernels import GATE, _wrap, kernel_cv_predict, kernel_reflect, kernel_systematic_indices
+from trackjam.estimation.kernels import (
+    GATE,
+    _wrap,
+    kernel_cv_predict,
+    kernel_logsumexp,
+    kernel_reflect,
+    kernel_systematic_indices,
+)
 from trackjam.estimation.lmb_association import association_marginals
 from trackjam.radio.antenna import AntennaModel, kernel_cone_gain
 from trackjam.radio.measurement import clutter_density
@@ -83,6 +89,66 @@ def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n
             if d2 < GATE * GATE:
                 out[i, j] = c_max - 0.5 * d2
     return p_d, out
+
+
+@njit(cache=True)
+def kernel_log_means(log_w, log_f):
+    """log sum_i exp(log_w[i] + log_f[i, c]) per column c: log <f_c> over a track's density."""
+    n, k = log_f.shape
+    out = np.empty(k)
+    for c in range(k):
+        mx = -np.inf
+        for i in range(n):
+            v = log_w[i] + log_f[i, c]
+            if v > mx:
+                mx = v
+        if mx == -np.inf:
+            out[c] = -np.inf
+            continue
+        acc = 0.0
+        for i in range(n):
+            v = log_w[i] + log_f[i, c]
+            if v > -np.inf:
+                acc += math.exp(v - mx)
+        out[c] = mx + math.log(acc)
+    return out
+
+
+@njit(cache=True)
+def kernel_mixture_log_weights(log_w, log_f, coef):
+    """Normalised log of w_i sum_c exp(log_f[i, c] + coef[c]) over the columns with a finite
+    ``coef``: the posterior weights of a track's particles."""
+    n, k = log_f.shape
+    out = np.empty(n)
+    for i in range(n):
+        mx = -np.inf
+        for c in range(k):
+            if coef[c] > -np.inf:
+                v = log_f[i, c] + coef[c]
+                if v > mx:
+                    mx = v
+        if mx == -np.inf:
+            out[i] = -np.inf
+            continue
+        acc = 0.0
+        for c in range(k):
+            if coef[c] > -np.inf:
+                v = log_f[i, c] + coef[c]
+                if v > -np.inf:
+                    acc += math.exp(v - mx)
+        out[i] = log_w[i] + mx + math.log(acc)
+    mx = -np.inf
+    for i in range(n):
+        if out[i] > mx:
+            mx = out[i]
+    acc = 0.0
+    for i in range(n):
+        if out[i] > -np.inf:
+            acc += math.exp(out[i] - mx)
+    total = mx + math.log(acc)
+    for i in range(n):
+        out[i] -= total
+    return out
 
 
 @dataclass(frozen=True)
@@ -159,7 +225,7 @@ def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_ka
     )
     with np.errstate(divide="ignore"):
         log_f = np.column_stack([np.log1p(-np.minimum(p_d, 1.0)), np.log(p_d)[:, None] + log_g])
-        log_mean = logsumexp(track.log_w[:, None] + log_f, axis=0)
+        log_mean = kernel_log_means(track.log_w, np.ascontiguousarray(log_f))
         log_r, log_not = math.log(track.r) if track.r > 0 else -np.inf, math.log1p(-min(track.r, 1.0))
     log_eta = log_r + log_mean
     log_eta[0] = np.logaddexp(log_not, log_r + log_mean[0])
@@ -177,12 +243,12 @@ def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
         # the share of "undetected" in which the track exists and was missed
         log_coef = log_beta.copy()
         log_coef[0] = log_beta[0] + log_r + log_mean[0] - f.log_eta[0]
-    r_new = float(np.exp(logsumexp(log_coef))) if np.any(np.isfinite(log_coef)) else 0.0
+    r_new = float(np.exp(kernel_logsumexp(log_coef)))
     if r_new <= 0.0:
         return replace(track, r=0.0)
     usable = np.isfinite(log_coef) & np.isfinite(log_mean)
-    log_post = track.log_w + logsumexp(f.log_f[:, usable] + (log_coef[usable] - log_mean[usable]), axis=1)
-    log_post -= logsumexp(log_post)
+    coef = np.where(usable, log_coef - np.where(usable, log_mean, 0.0), -np.inf)
+    log_post = kernel_mixture_log_weights(track.log_w, np.ascontiguousarray(f.log_f), coef)
     return replace(track, r=min(r_new, 1.0), log_w=log_post)
 
 
@@ -225,7 +291,7 @@ def draw_birth(rng: np.random.Generator, scan: Scan, j: int, n: int, b: UniformB
     log_w[~b.in_area(X[:, :3])] = -np.inf
     if not np.any(np.isfinite(log_w)):
         return None
-    return X, log_w - logsumexp(log_w)
+    return X, log_w - kernel_logsumexp(log_w)
 
 
 class LMBFilter:
