@@ -4,6 +4,7 @@ pruning, and two targets tracked under their own labels."""
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -238,6 +239,19 @@ def test_pruning_and_the_cap_keep_the_most_likely():
     assert all(len(t.X) == 1500 for t in f.tracks)
 
 
+def test_a_track_gets_a_targets_particles_once_confirmed():
+    """Never confirmed: a birth's particle count; once r has exceeded 0.5, ``particles``, kept
+    while r falls again (a hidden target keeps its density)."""
+    f = LMBFilter(params(particles=3000, birth_particles=400), ANT, np.random.default_rng(0))
+    f.tracks = [Track((1, 0), 0.3, X_HAND.copy(), np.log(W_HAND)), Track((1, 1), 0.6, X_HAND.copy(), np.log(W_HAND))]
+    far_u, far_aim = np.array([90.0, 90.0, 90.0]), np.array([95.0, 95.0, 95.0])  # the tracks are out of the cone
+    f.update(np.zeros((0, 3)), far_u, far_aim, ANT.l_max)
+    assert [(t.label, len(t.X), t.confirmed) for t in f.tracks] == [((1, 1), 3000, True), ((1, 0), 400, False)]
+    f.tracks = [replace(t, r=0.1) for t in f.tracks]
+    f.update(np.zeros((0, 3)), far_u, far_aim, ANT.l_max)
+    assert sorted((t.label, len(t.X)) for t in f.tracks) == [((1, 0), 400), ((1, 1), 3000)]
+
+
 def test_reset_track_sets_existence_and_redraws():
     f = LMBFilter(params(particles=20_000), ANT, np.random.default_rng(0))
     f.tracks = [Track((3, 1), 0.4, X_HAND.copy(), np.log(W_HAND))]
@@ -324,7 +338,8 @@ def test_one_target_run_agrees_with_the_bernoulli_filter():
             eb = bf.update(Z, SCENE_U, SCENE_AIM, 1.0)
             lf.predict()
             (el,) = lf.update(Z, SCENE_U, SCENE_AIM, 1.0)
-            E[seed, t] = eb.existence, el.existence, np.linalg.norm(eb.mean[:3] - x[:3]), np.linalg.norm(el.mean[:3] - x[:3])
+            E[seed, t] = (eb.existence, el.existence,
+                          np.linalg.norm(eb.mean[:3] - x[:3]), np.linalg.norm(el.mean[:3] - x[:3]))
     mean = E.mean(axis=0)
     assert np.all(np.abs(mean[:, 0] - mean[:, 1]) < 0.1)
     assert np.all(np.abs(mean[:, 2] - mean[:, 3]) < 1.0 + 0.3 * mean[:, 2])

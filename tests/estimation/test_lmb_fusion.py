@@ -65,7 +65,8 @@ def test_one_target_equals_todays_fuse(rule):
 def test_unmatched_tracks_are_kept_and_each_agent_adds_at_most_one_per_cluster():
     """Agent 1 holds two tracks near agent 0's one: one joins it, the other stays its own."""
     tracks = [[track((1, 0), 0.9, (10, 10, 10))],
-              [track((1, 0), 0.9, (10.5, 10, 10)), track((1, 1), 0.6, (11, 10.5, 10)), track((1, 2), 0.4, (80, 80, 80))]]
+              [track((1, 0), 0.9, (10.5, 10, 10)), track((1, 1), 0.6, (11, 10.5, 10)),
+               track((1, 2), 0.4, (80, 80, 80))]]
     clusters = associate_tracks(tracks)
     assert sorted(map(sorted, clusters)) == [[(0, 0), (1, 0)], [(1, 1)], [(1, 2)]]
     fused = fuse_tracks(tracks)

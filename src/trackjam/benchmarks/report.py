@@ -22,10 +22,11 @@ def machine() -> dict:
 
 
 def _groups(quick: bool) -> dict:
-    from trackjam.benchmarks import control, env, filter, run
+    from trackjam.benchmarks import control, env, filter, lmb, run
 
     return {
-        "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)}],
+        "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)},
+                           {"name": "LMB filter step, 3 targets", **lmb.bench_lmb_step(repeats=5 if quick else 100)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")],
         "env": lambda: [env.bench_env(episodes=1 if quick else 5)],

@@ -23,7 +23,12 @@ Cartesian Gaussian weighted by p_D g / Gaussian, so a measurement from where the
 detect starts no track.
 
 Tracks below the pruning threshold are dropped, the most likely ``max_tracks`` kept, and each
-track is resampled (systematic) to its particle count.
+track is resampled (systematic) to its particle count: ``particles`` once it has been confirmed
+(r > 0.5), a birth's count before (ours). Most tracks are never confirmed: clutter starts them,
+and where p_D is small (far along the cone) misses barely lower their r, so they linger; the
+density of a track that once held a target, hidden or lost since, keeps a target's particles
+(giving every track particles in proportion to r halved the step time but re-found a target
+after a hidden spell less often than the Bernoulli filter).
 """
 
 from __future__ import annotations
@@ -49,6 +54,7 @@ from trackjam.radio.antenna import AntennaModel, kernel_cone_gain
 from trackjam.radio.measurement import clutter_density
 
 DT = 1.0  # dT [s]
+CONFIRM = 0.5  # a track is confirmed once r > 0.5 (Section V-A's e > 0.5)
 BIRTH_FLOOR = 0.1  # smallest standard deviation per axis of a birth's position Gaussian [m] (ours)
 _LOG_2PI = math.log(2.0 * math.pi)
 
@@ -156,8 +162,8 @@ class LMBParams:
     """What one agent's LMB filter needs: the model it assumes, its births and its budgets."""
 
     survival_prob: float  # p_s
-    particles: int  # particles per track after an update
-    birth_particles: int  # particles of a track born around one measurement
+    particles: int  # particles of a confirmed track after an update
+    birth_particles: int  # particles of a track born around one measurement, and of a track never confirmed
     birth_rate: float  # lambda_B: expected number of births per step (adaptive birth)
     birth_existence_max: float  # r_B^max: cap on a birth's existence
     birth_speed: float  # a birth's velocity, uniform in ±v per axis [m/s]
@@ -168,7 +174,7 @@ class LMBParams:
     noise_std: np.ndarray  # (3,) Sigma_w diagonal as standard deviations
     clutter_rate: float  # lambda_c
     prune: float = 1e-3  # tracks with r below this are dropped
-    max_tracks: int = 50  # at most this many tracks, the most likely
+    max_tracks: int = 20  # at most this many tracks, the most likely (clutter-born ones fill it)
     association: str = "gibbs"  # "gibbs" | "ranked"
     gibbs_samples: int = 1000  # Gibbs sweeps per update
     ranked_k: int = 200  # hypotheses of the ranked assignment
@@ -187,12 +193,13 @@ class LMBParams:
 @dataclass(frozen=True)
 class Track:
     """One Bernoulli component: label (birth step, index), existence r, particles ``X`` (n, 6)
-    and their normalised log-weights."""
+    and their normalised log-weights; ``confirmed`` once r has exceeded 0.5 after an update."""
 
     label: tuple[int, int]
     r: float
     X: np.ndarray
     log_w: np.ndarray
+    confirmed: bool = False
 
 
 @dataclass(frozen=True)
@@ -344,7 +351,7 @@ class LMBFilter:
         posterior, _, r_U = lmb_update(self.tracks, scan, self.ant, self.noise_std, self.log_kappa, self.rng,
                                        p.association, p.gibbs_samples, p.ranked_k)
         kept = sorted((t for t in posterior if t.r >= p.prune), key=lambda t: -t.r)[: p.max_tracks]
-        self.tracks = [self._resampled(t) for t in kept]
+        self.tracks = [self._resampled(replace(t, confirmed=t.confirmed or t.r > CONFIRM)) for t in kept]
         self._births = []
         for j, r_b in enumerate(birth_existences(r_U, p.birth_rate, p.birth_existence_max)):
             if r_b < p.prune:
@@ -356,7 +363,7 @@ class LMBFilter:
         return self.estimates()
 
     def _resampled(self, t: Track) -> Track:
-        n = self.p.particles
+        n = self.p.particles if t.confirmed else min(self.p.birth_particles, self.p.particles)
         idx = kernel_systematic_indices(np.exp(t.log_w), n, self.rng.uniform())
         return replace(t, X=t.X[idx], log_w=np.full(n, -math.log(n)))
 
