@@ -127,6 +127,32 @@ def test_one_track_is_the_bernoulli_filter(method, r, Z):
     assert r_U.shape == (len(Z),)
 
 
+@pytest.mark.parametrize("r", [0.1, 0.6])
+def test_teammates_scans_update_one_track_as_the_bernoulli_product(r):
+    """With one track, the update by the own scan and then each teammate's (``others``) is the
+    Bernoulli update by the product of the scans' factors: logit(e) = logit(e_pred) +
+    log sum_i w_i L_i L'_i L''_i, and s ∝ w L L' L''."""
+    u2, aim2 = np.array([12.0, 14.0, 11.0]), np.array([14.0, 13.0, 12.0])
+    # weak levels keep the evidence moderate: existence is carried as a probability, so odds
+    # beyond 1e16 after one scan would round r to 1, which no later scan can lower
+    mine = scan(np.vstack([h(X_HAND[1], U) + [0.3, 0.02, 0.0], [30.0, 2.0, 2.5]]), 1e-4 * ANT.l_max)
+    theirs = [Scan.of(h(X_HAND[2], u2)[None, :], u2, aim2, 1e-4 * ANT.l_max, ANT),
+              Scan.of(np.zeros((0, 3)), u2, U, 0.5 * ANT.l_max, ANT)]
+    f = LMBFilter(params(particles=4, birth_particles=4, birth_rate=0.0, clutter_rate=S.sensor.clutter_rate), ANT,
+                  np.random.default_rng(0))
+    f._predicted = True  # the hand particle set is the prediction
+    f.tracks = [Track((1, 0), r, X_HAND.copy(), np.log(W_HAND))]
+    log_L = sum(s.log_factors(X_HAND, ANT, SIGMA, LOG_KAPPA) for s in [mine, *theirs])
+    log_A = logsumexp(np.log(W_HAND) + log_L)
+    e = 1.0 / (1.0 + math.exp(-(math.log(r / (1 - r)) + log_A)))
+    (est,) = f.update(mine.Z, U, AIM, 1e-4 * ANT.l_max, others=theirs)
+    assert 0.05 < e < 0.999 and est.existence == pytest.approx(e, rel=1e-10)
+    tracks = [Track((1, 0), r, X_HAND, np.log(W_HAND))]
+    for sc in [mine, *theirs]:  # the filter's update before resampling
+        tracks, _, _ = lmb_update(tracks, sc, ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0))
+    np.testing.assert_allclose(np.exp(tracks[0].log_w), np.exp(np.log(W_HAND) + log_L - log_A), atol=1e-12)
+
+
 def brute_force_lmb(tracks, sc):
     """The LMB posterior by enumerating every joint hypothesis: r_i' = sum over hypotheses of
     their weight times P(track i exists | the hypothesis), s_i' the matching mixture."""

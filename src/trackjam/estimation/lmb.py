@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Sequence
 
 import numpy as np
 from numba import njit
@@ -233,7 +234,8 @@ def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_ka
     with np.errstate(divide="ignore"):
         log_f = np.column_stack([np.log1p(-np.minimum(p_d, 1.0)), np.log(p_d)[:, None] + log_g])
         log_mean = kernel_log_means(track.log_w, np.ascontiguousarray(log_f))
-        log_r, log_not = math.log(track.r) if track.r > 0 else -np.inf, math.log1p(-min(track.r, 1.0))
+        log_r = math.log(track.r) if track.r > 0.0 else -np.inf
+        log_not = math.log1p(-track.r) if track.r < 1.0 else -np.inf
     log_eta = log_r + log_mean
     log_eta[0] = np.logaddexp(log_not, log_r + log_mean[0])
     return Factors(log_f, log_mean, log_eta)
@@ -340,16 +342,24 @@ class LMBFilter:
         self._predicted = True
         return self.estimates()
 
-    def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float) -> list[TrackEstimate]:
+    def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float,
+               others: Sequence[Scan] = ()) -> list[TrackEstimate]:
         """Update by scan ``Z`` (m, 3) taken from ``u`` with the antenna aimed at ``aim`` and
-        transmitting ``level_w`` watts; then the births of this scan, pruning, the cap and
-        resampling. Runs ``predict()`` first if it was not called since the last update."""
+        transmitting ``level_w`` watts, then by each of the teammates' scans ``others`` in turn
+        (the iterated corrector: the scans are independent given the targets, and with one track
+        this is the Bernoulli update by the product of their factors, up to rounding: r is a
+        probability, so odds beyond 1e16 after one scan round it to 1, which no later scan
+        lowers); then the births of the own scan, pruning, the cap and resampling. Runs
+        ``predict()`` first if it was not called since the last update."""
         if not self._predicted:
             self.predict()
         scan = Scan.of(Z, u, aim, level_w, self.ant)
         p = self.p
         posterior, _, r_U = lmb_update(self.tracks, scan, self.ant, self.noise_std, self.log_kappa, self.rng,
                                        p.association, p.gibbs_samples, p.ranked_k)
+        for other in others:
+            posterior, _, _ = lmb_update([t for t in posterior if t.r > 0.0], other, self.ant, self.noise_std,
+                                         self.log_kappa, self.rng, p.association, p.gibbs_samples, p.ranked_k)
         kept = sorted((t for t in posterior if t.r >= p.prune), key=lambda t: -t.r)[: p.max_tracks]
         self.tracks = [self._resampled(replace(t, confirmed=t.confirmed or t.r > CONFIRM)) for t in kept]
         self._births = []
