@@ -8,23 +8,18 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from scipy.special import logsumexp
 
 from trackjam.config import load_scenario
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams, Scan, bernoulli_update
 from trackjam.estimation.birth import UniformBirth
-from trackjam.estimation.kernels import GATE, kernel_update_factors
+from trackjam.estimation.kernels import GATE
 from trackjam.estimation.lmb import (
     LMBFilter,
     LMBParams,
     Track,
     birth_existences,
     draw_birth,
-    kernel_association_factors,
-    kernel_log_means,
-    kernel_mixture_log_weights,
     lmb_update,
     track_factors,
 )
@@ -63,49 +58,6 @@ def factors_twin(X, Z, level_w):
     d2 = np.sum((r / SIGMA) ** 2, axis=-1)
     log_g = -1.5 * math.log(2 * math.pi) - np.sum(np.log(SIGMA)) - 0.5 * d2 - LOG_KAPPA
     return p_d, np.where((p_d[:, None] > 0) & (d2 < GATE**2), log_g, -np.inf)
-
-
-@settings(max_examples=30, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(0, 4), st.sampled_from([0.0, 0.3, 1.0]))
-def test_association_factors_equal_numpy_twin_and_the_bernoulli_kernel(seed, m, level):
-    rng = np.random.default_rng(seed)
-    X = np.hstack([U + rng.normal(0, 4, (200, 3)) + 4 * AX, rng.normal(0, 1, (200, 3))])
-    Z = np.array([h(X[rng.integers(200)], U) + rng.normal(0, 1, 3) * SIGMA for _ in range(m)]).reshape(-1, 3)
-    Z[:, 1] = wrap_angle(Z[:, 1])
-    level_w = level * ANT.l_max
-    sc = scan(Z, level_w)
-    p_d, log_g = kernel_association_factors(X, sc.Z, U, sc.axis, sc.p_d_scale, ANT.height, ANT.tan_half, ANT.r0,
-                                            ANT.n_e, SIGMA, LOG_KAPPA)
-    p_twin, g_twin = factors_twin(X, sc.Z, level_w)
-    np.testing.assert_allclose(p_d, p_twin, atol=1e-12)
-    np.testing.assert_array_equal(np.isfinite(log_g), np.isfinite(g_twin))
-    np.testing.assert_allclose(log_g[np.isfinite(log_g)], g_twin[np.isfinite(g_twin)], atol=1e-9)
-    # the Bernoulli filter's bracket L_i = 1 - p_D + p_D sum_j g_j / kappa, from these factors
-    _, log_L = kernel_update_factors(X, sc.Z, U, sc.axis, sc.p_d_scale, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e,
-                                     SIGMA, LOG_KAPPA)
-    L = 1 - p_d + p_d * np.exp(log_g).sum(axis=1)
-    np.testing.assert_allclose(np.log(L), log_L, rtol=1e-9, atol=1e-12)
-
-
-@settings(max_examples=40, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(1, 50), st.integers(1, 4), st.floats(0.0, 0.6))
-def test_log_mean_and_mixture_kernels_equal_numpy_twins(seed, n, k, share_inf):
-    """The compiled <f_c> and posterior weights against scipy's logsumexp, -inf entries included
-    (a particle outside the cone, a measurement beyond the gate, a column with beta = 0)."""
-    rng = np.random.default_rng(seed)
-    log_w = rng.normal(0, 2, n)
-    log_w -= logsumexp(log_w)
-    log_f = np.where(rng.random((n, k)) < share_inf, -np.inf, rng.normal(0, 5, (n, k)))
-    coef = np.where(rng.random(k) < share_inf, -np.inf, rng.normal(0, 3, k))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        np.testing.assert_allclose(kernel_log_means(log_w, log_f), logsumexp(log_w[:, None] + log_f, axis=0),
-                                   rtol=1e-12, atol=1e-12)
-        use = np.isfinite(coef)
-        if not use.any() or not np.isfinite(log_f[:, use]).any():
-            return
-        twin = log_w + logsumexp(log_f[:, use] + coef[use], axis=1)
-        twin -= logsumexp(twin)
-    np.testing.assert_allclose(kernel_mixture_log_weights(log_w, log_f, coef), twin, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("method", ["gibbs", "ranked"])

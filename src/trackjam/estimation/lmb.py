@@ -38,124 +38,18 @@ from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
-from numba import njit
 
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
-from trackjam.estimation.kernels import (
-    GATE,
-    _wrap,
-    kernel_cv_predict,
-    kernel_logsumexp,
-    kernel_reflect,
-    kernel_systematic_indices,
-)
+from trackjam.estimation.kernels import kernel_cv_predict, kernel_logsumexp, kernel_reflect, kernel_systematic_indices
 from trackjam.estimation.lmb_association import association_marginals
-from trackjam.radio.antenna import AntennaModel, kernel_cone_gain
+from trackjam.estimation.lmb_kernels import kernel_association_factors, kernel_log_means, kernel_mixture_log_weights
+from trackjam.radio.antenna import AntennaModel
 from trackjam.radio.measurement import clutter_density
 
 DT = 1.0  # dT [s]
 CONFIRM = 0.5  # a track is confirmed once r > 0.5 (Section V-A's e > 0.5)
 BIRTH_FLOOR = 0.1  # smallest standard deviation per axis of a birth's position Gaussian [m] (ours)
-_LOG_2PI = math.log(2.0 * math.pi)
-
-
-@njit(cache=True)
-def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
-    """Per particle ``p_D`` (n,) and per particle and measurement ``log g(y_j | x_i) - log
-    kappa`` (n, m), kappa = lambda_c p_c; -inf where p_D = 0 or y_j lies GATE standard
-    deviations or more away (the gating of ``kernel_update_factors``, whose log L_i is
-    log(1 - p_D + p_D sum_j exp(.)) of these)."""
-    n = X.shape[0]
-    m = Z.shape[0]
-    p_d = np.empty(n)
-    out = np.full((n, m), -np.inf)
-    s0, s1, s2 = noise_std[0], noise_std[1], noise_std[2]
-    c_max = -1.5 * _LOG_2PI - math.log(s0) - math.log(s1) - math.log(s2) - log_kappa
-    for i in range(n):
-        pd = p_d_scale * kernel_cone_gain(
-            X[i, 0], X[i, 1], X[i, 2], u[0], u[1], u[2], axis[0], axis[1], axis[2], height, tan_half, r0, n_e
-        )
-        p_d[i] = pd
-        if pd <= 0.0:
-            continue
-        dx = X[i, 0] - u[0]
-        dy = X[i, 1] - u[1]
-        dz = X[i, 2] - u[2]
-        rho_xy = math.sqrt(dx * dx + dy * dy)
-        rho = math.sqrt(rho_xy * rho_xy + dz * dz)
-        az = math.atan2(dy, dx)
-        inc = math.atan2(rho_xy, dz)
-        for j in range(m):
-            e0 = (Z[j, 0] - rho) / s0
-            if e0 > GATE or e0 < -GATE:
-                continue
-            e1 = _wrap(Z[j, 1] - az) / s1
-            e2 = _wrap(Z[j, 2] - inc) / s2
-            d2 = e0 * e0 + e1 * e1 + e2 * e2
-            if d2 < GATE * GATE:
-                out[i, j] = c_max - 0.5 * d2
-    return p_d, out
-
-
-@njit(cache=True)
-def kernel_log_means(log_w, log_f):
-    """log sum_i exp(log_w[i] + log_f[i, c]) per column c: log <f_c> over a track's density."""
-    n, k = log_f.shape
-    out = np.empty(k)
-    for c in range(k):
-        mx = -np.inf
-        for i in range(n):
-            v = log_w[i] + log_f[i, c]
-            if v > mx:
-                mx = v
-        if mx == -np.inf:
-            out[c] = -np.inf
-            continue
-        acc = 0.0
-        for i in range(n):
-            v = log_w[i] + log_f[i, c]
-            if v > -np.inf:
-                acc += math.exp(v - mx)
-        out[c] = mx + math.log(acc)
-    return out
-
-
-@njit(cache=True)
-def kernel_mixture_log_weights(log_w, log_f, coef):
-    """Normalised log of w_i sum_c exp(log_f[i, c] + coef[c]) over the columns with a finite
-    ``coef``: the posterior weights of a track's particles."""
-    n, k = log_f.shape
-    out = np.empty(n)
-    for i in range(n):
-        mx = -np.inf
-        for c in range(k):
-            if coef[c] > -np.inf:
-                v = log_f[i, c] + coef[c]
-                if v > mx:
-                    mx = v
-        if mx == -np.inf:
-            out[i] = -np.inf
-            continue
-        acc = 0.0
-        for c in range(k):
-            if coef[c] > -np.inf:
-                v = log_f[i, c] + coef[c]
-                if v > -np.inf:
-                    acc += math.exp(v - mx)
-        out[i] = log_w[i] + mx + math.log(acc)
-    mx = -np.inf
-    for i in range(n):
-        if out[i] > mx:
-            mx = out[i]
-    acc = 0.0
-    for i in range(n):
-        if out[i] > -np.inf:
-            acc += math.exp(out[i] - mx)
-    total = mx + math.log(acc)
-    for i in range(n):
-        out[i] -= total
-    return out
 
 
 @dataclass(frozen=True)
