@@ -82,9 +82,11 @@ def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constra
         it_best = -np.inf
         for _s in range(samples):
             for i in range(N):
-                x = min(int(rng.random() * M[i]), M[i] - 1)
-                tg[i] = x // blk[i]
-                pr[i] = x - tg[i] * blk[i]
+                pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
+                tg[i] = 0
+                while pr[i] >= blk[i]:  # pr // blk without a division: K is small
+                    pr[i] -= blk[i]
+                    tg[i] += 1
             xi = kernel_targets_value(pz, n, kind, pr, tg, kk, p, q)
             if xi > it_best and (not constrained or _feasible(gain, levels_w, delta, C, pr, tg, L)):
                 it_best = xi

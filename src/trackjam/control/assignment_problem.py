@@ -160,11 +160,13 @@ def assignment_value(problem: AssignmentProblem, cand, level, target) -> tuple[n
     return value, ok
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def kernel_targets_value(pz, n, kind, pair, target, kk, p, q):
     """Compiled team objective of one joint choice (``pair[i]`` = c * L + l, ``target`` (N,));
     ``kk`` (N,), ``p`` (N,) and ``q`` (n + 1,) are work buffers."""
     K, N = pz.shape[0], pz.shape[1]
+    if K == 1:  # every agent serves the one target: Eq. (12) itself
+        return _sample_xi(pz[0], pair, n, p, q)
     zero = pz.shape[2] - 1
     acc = 0.0 if kind == 0 else np.inf
     for k in range(K):
