@@ -12,9 +12,9 @@ from trackjam.control.assignment import (
     build_assignment,
     solve_assignment,
 )
-from trackjam.control.assignment_exact import enumerate_assignment, solve_assignment_exact
+from trackjam.control.assignment_exact import agent_order, solve_assignment_exact
 from trackjam.control.assignment_problem import assignment_value, kernel_targets_value, target_xi
-from trackjam.control.exact import solve_exact
+from trackjam.control.exact import pair_order, solve_exact
 from trackjam.control.objective import evaluate
 from trackjam.control.solve import SOLVERS, solve
 
@@ -29,6 +29,36 @@ def random_assignment(rng, antenna, n_agents=3, n_targets=2, at_least=2, constra
     aims = np.clip(x + rng.normal(0, spread, (n_targets, 3)), 0, 100)
     u = np.clip(x + rng.normal(0, spread, (n_agents, 3)), 0, 100)
     return build_assignment(u, aims, D, antenna, LOW, HIGH, at_least, constraints, objective)
+
+
+def enumerate_assignment(problem) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """Plain-numpy enumeration of every (candidate, level, target) of every agent, in the
+    search's order (small instances only, agents in :func:`agent_order`): (value, candidate
+    slots, levels, targets), with the search's starting incumbent and ties."""
+    N, K, L = problem.n_agents, problem.n_targets, problem.n_levels
+    orders = [pair_order(P)[0] for P in problem.targets]
+    tgt, prs = [], []  # each agent's choices in the search's order: target blocks, pair ranks
+    for i in range(N):
+        b = int(problem.n_cand[i]) * L
+        tgt.append(np.repeat(np.arange(K), b))
+        prs.append(np.concatenate([orders[k][i, :b] for k in range(K)]))
+    first = agent_order(problem)  # the slowest-varying agent first
+    grids = np.meshgrid(*[np.arange(len(tgt[i])) for i in first], indexing="ij")
+    idx = np.empty((grids[0].size, N), dtype=np.int64)
+    for d, i in enumerate(first):
+        idx[:, i] = grids[d].ravel()
+    target = np.stack([tgt[i][idx[:, i]] for i in range(N)], axis=-1)
+    pair = np.stack([prs[i][idx[:, i]] for i in range(N)], axis=-1)
+    value, ok = assignment_value(problem, pair // L, pair % L, target)
+    if problem.constraints:
+        value = np.where(ok, value, -np.inf)
+    z = np.zeros(N, dtype=np.int64)
+    v0, ok0 = assignment_value(problem, z, z, z)
+    start = float(v0) if (ok0 or not problem.constraints) else -np.inf
+    s = int(np.argmax(value))
+    if value[s] > start:
+        return float(value[s]), pair[s] // L, pair[s] % L, target[s]
+    return start, z, z, z
 
 
 def random_choices(rng, P, rows):
@@ -187,8 +217,6 @@ def test_greedy_takes_each_agents_best_pd_over_every_target(antenna):
 
 
 def test_agents_are_placed_by_what_they_add_to_the_targets_coverage(antenna):
-    from trackjam.control.assignment_exact import agent_order
-
     rng = np.random.default_rng(12)
     P1 = random_assignment(rng, antenna, 4, 1, 2)
     assert agent_order(P1).tolist() == [0, 1, 2, 3]

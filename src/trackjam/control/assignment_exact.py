@@ -24,7 +24,7 @@ small dynamic programme over targets. For agent d itself serving k with p_D = x,
 A + B x (A = P(at least t others detect), B = P(exactly t - 1 do)), so the bound rises with x:
 once a pair of block k is cut, the rest of block k is too.
 
-``enumerate_assignment`` is the plain-numpy enumeration the tests hold the kernel to.
+The tests hold the kernel to a plain-numpy enumeration of every choice in this order.
 """
 
 from __future__ import annotations
@@ -38,7 +38,6 @@ from numba import njit
 from trackjam.control.assignment_problem import (
     AssignmentProblem,
     AssignmentSolution,
-    assignment_value,
     kernel_targets_value,
     to_assignment_solution,
 )
@@ -401,33 +400,3 @@ def solve_assignment_exact(problem: AssignmentProblem, time_limit_s: float | Non
     search = AssignmentSearch(problem)
     search.run(time_limit_s, node_limit)
     return search.solution()
-
-
-def enumerate_assignment(problem: AssignmentProblem) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-    """Plain-numpy enumeration of every (candidate, level, target) of every agent, in the
-    search's order (small instances only, agents in :func:`agent_order`): (value, candidate
-    slots, levels, targets), with the search's starting incumbent and ties."""
-    N, K, L = problem.n_agents, problem.n_targets, problem.n_levels
-    orders = [pair_order(P)[0] for P in problem.targets]
-    tgt, prs = [], []  # each agent's choices in the search's order: target blocks, pair ranks
-    for i in range(N):
-        b = int(problem.n_cand[i]) * L
-        tgt.append(np.repeat(np.arange(K), b))
-        prs.append(np.concatenate([orders[k][i, :b] for k in range(K)]))
-    first = agent_order(problem)  # the slowest-varying agent first
-    grids = np.meshgrid(*[np.arange(len(tgt[i])) for i in first], indexing="ij")
-    idx = np.empty((grids[0].size, N), dtype=np.int64)
-    for d, i in enumerate(first):
-        idx[:, i] = grids[d].ravel()
-    target = np.stack([tgt[i][idx[:, i]] for i in range(N)], axis=-1)
-    pair = np.stack([prs[i][idx[:, i]] for i in range(N)], axis=-1)
-    value, ok = assignment_value(problem, pair // L, pair % L, target)
-    if problem.constraints:
-        value = np.where(ok, value, -np.inf)
-    z = np.zeros(N, dtype=np.int64)
-    v0, ok0 = assignment_value(problem, z, z, z)
-    start = float(v0) if (ok0 or not problem.constraints) else -np.inf
-    s = int(np.argmax(value))
-    if value[s] > start:
-        return float(value[s]), pair[s] // L, pair[s] % L, target[s]
-    return start, z, z, z
