@@ -143,12 +143,16 @@ class Components:
         return truth_seed, [s.spawn(3) for s in agents_seed.spawn(self.n_agents)], comms_seed
 
 
-def build(s: Scenario) -> Components:
+def one_target(s: Scenario) -> None:
+    """Refuse a scenario with several targets for the one-target engine, in one line."""
     if len(s.target_list) > 1:
         raise ConfigError(
             f"targets: {len(s.target_list)} targets given, but a run simulates one target so far (the multi-target "
             "truth, filter and control are building blocks not yet wired into the engine); give one"
         )
+
+
+def build(s: Scenario) -> Components:
     c = s.control
     return Components(
         name=s.name,

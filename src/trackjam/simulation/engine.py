@@ -21,7 +21,7 @@ from trackjam.metrics.summary import summarise
 from trackjam.radio.antenna import detection_probability, interference_matrix, received_power
 from trackjam.radio.measurement import sample_scan
 from trackjam.simulation.agent import Agent
-from trackjam.simulation.build import Components, build
+from trackjam.simulation.build import Components, build, one_target
 from trackjam.simulation.logs import RunLog
 from trackjam.simulation.team import Team
 from trackjam.world.target import TruthTarget
@@ -81,6 +81,7 @@ class Simulation:
     ``step((moves, levels))`` applies the given displacement and level indices, one per agent."""
 
     def __init__(self, scenario: Scenario) -> None:
+        one_target(scenario)
         self.scenario = scenario
         self.c: Components = build(scenario)
         self.reset()
