@@ -1,5 +1,6 @@
 """The command line: presets, show-config, validate, and bad input (one line, exit 2)."""
 
+import json
 import subprocess
 import sys
 
@@ -212,13 +213,25 @@ def test_an_abort_outside_a_command_is_one_line_and_exit_130(monkeypatch, capsys
     assert capsys.readouterr().err.strip() == "trackjam: interrupted"
 
 
-def test_a_run_with_several_targets_is_refused_until_the_engine_simulates_them(tmp_path):
-    """`targets:` with K > 1 validates, but a run would silently follow only the first target:
-    one line naming the key, exit 2, nothing written."""
+def test_a_run_with_several_targets_runs_on_the_swarm_engine_and_writes_its_logs(tmp_path):
+    """`targets:` with K > 1 runs end to end: the swarm's closing table per target and its five
+    logs; an option the swarm engine does not simulate is one line naming the key, exit 2,
+    nothing written."""
     f = tmp_path / "two.yaml"
-    f.write_text("targets:\n  - {id: a}\n  - {id: b, initial: [60, 60, 60, -1, 0, 0]}\nsteps: 2\n")
+    f.write_text("targets:\n  - {id: a}\n  - {id: b, initial: [60, 60, 60, -1, 0, 0]}\nsteps: 2\n"
+                 "filter: {particles: 200, birth_particles: 50}\n")
     assert runner.invoke(app, ["validate", str(f)]).exit_code == 0
     out = tmp_path / "run"
-    r = subprocess.run([sys.executable, "-m", "trackjam", "run", str(f), "--out", str(out)], capture_output=True, text=True)
-    assert r.returncode == 2 and "targets: 2 targets given" in r.stderr and "Traceback" not in r.stderr
-    assert not out.exists()
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", str(f), "--out", str(out), "--no-figures"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "target a: held" in r.stdout and "target b: held" in r.stdout and "2 targets" in r.stdout
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["scenario.yaml", "summary.json", "steps.parquet", "targets.parquet", "tracks.parquet", "agents.parquet",
+         "measurements.parquet"])
+    assert json.loads((out / "summary.json").read_text())["ids"] == ["a", "b"]
+    bad = tmp_path / "bad"
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", str(f), "--out", str(bad), "--set", "comms.loss=0.1"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("trackjam: error: comms.loss:") and "Traceback" not in r.stderr
+    assert not bad.exists()

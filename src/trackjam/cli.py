@@ -196,6 +196,10 @@ def run(
         close()
     files = write_run(result, out, figures=figures)
     m = result.summary
+    if "n_targets" in m:
+        Console(width=100).print(_swarm_table(s, m))
+        typer.echo(f"wrote {len(files)} files to {out}")
+        return
     table = Table(title=escape(f"{s.name}  seed {s.seed}  solver {s.control.solver}"))
     table.add_column("metric")
     table.add_column("value", justify="right")
@@ -212,6 +216,34 @@ def run(
         add("target downed at step", str(m["downed_at"]))
     Console(width=100).print(table)
     typer.echo(f"wrote {len(files)} files to {out}")
+
+
+def _swarm_table(s, m: dict):
+    """The closing table of a run with several targets: per target held and downed, the
+    multi-target OSPA, incidents and time per step."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    table = Table(title=escape(f"{s.name}  seed {s.seed}  solver {s.control.solver}  {m['n_targets']} targets"))
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    add = lambda label, value: table.add_row(escape(label), escape(value))  # noqa: E731
+    for k, name in enumerate(m["ids"]):
+        downed = m["downed_at"][k]
+        add(f"target {name}: held (a track within {m['gate_m']:g} m) / detectable steps",
+            f"{m['held_steps'][k]}/{m['detectable_steps'][k]}  {_share(m['held_share'][k])}"
+            + ("" if downed is None else f"  downed at step {downed}"))
+    add("all targets: held / detectable target-steps",
+        f"{m['held_steps_total']}/{m['detectable_steps_total']}  {_share(m['held_share_total'])}")
+    add("steps with a false track (false tracks)", f"{m['false_track_steps']} ({m['false_tracks']})")
+    add("label switches per target", " ".join(str(v) for v in m["label_switches"]))
+    add("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")
+    add("  its cardinality part [m]", f"{m['ospa_card_mean']:.2f}")
+    add("mean |tracks - detectable targets|", f"{m['cardinality_error_mean']:.2f}")
+    add("jamming incidents per agent", " ".join(str(v) for v in m["jamming_incidents"]))
+    add("targets downed", f"{m['targets_downed']} of {m['n_targets']}")
+    add("time per step [ms]", f"{1000 * m['step_s_mean']:.1f}")
+    return table
 
 
 def _share(v: float | None) -> str:

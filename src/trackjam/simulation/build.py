@@ -21,6 +21,7 @@ from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
 from trackjam.errors import ConfigError
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
+from trackjam.estimation.lmb import LMBParams
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
 from trackjam.viz.settings import FigureSettings
@@ -144,11 +145,12 @@ class Components:
 
 
 def one_target(s: Scenario) -> None:
-    """Refuse a scenario with several targets for the one-target engine, in one line."""
+    """Refuse a scenario with several targets for the one-target engine, in one line (a run
+    with several targets goes through the swarm engine, :func:`build_swarm`)."""
     if len(s.target_list) > 1:
         raise ConfigError(
-            f"targets: {len(s.target_list)} targets given, but a run simulates one target so far (the multi-target "
-            "truth, filter and control are building blocks not yet wired into the engine); give one"
+            f"targets: {len(s.target_list)} targets given, but this component simulates one target; a run with "
+            "several targets goes through the swarm engine (trackjam.simulation.swarm.SwarmSimulation)"
         )
 
 
@@ -193,6 +195,68 @@ def build(s: Scenario) -> Components:
     )
 
 
+# The LMB filter's adaptive birth (ours, no key yet): lambda_B, the expected births per scan, and
+# r_B^max, the cap on one birth's existence (Reuter et al. 2014, Sec. IV-A)
+LMB_BIRTH_RATE = 0.1
+LMB_BIRTH_EXISTENCE_MAX = 0.1
+
+def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
+    """Options of the one-target engine the swarm engine does not read yet: (key, its value in
+    the scenario, the value the swarm engine runs with); a scenario that sets another is refused."""
+    return [
+        ("filter.visibility", s.filter.visibility, None),
+        ("fusion.share", s.fusion.share, "posteriors"),
+        ("fusion.existence", s.fusion.existence, "mean"),
+        ("fusion.report_spread", s.fusion.report_spread, None),
+        ("control.plan_over", s.control.plan_over, "point"),
+        ("control.fallback", s.control.fallback, "hover"),
+        ("control.lead", s.control.lead, 0.0),
+        ("control.horizon", s.control.horizon, 1),
+        ("comms.loss", s.comms.loss, 0.0),
+        ("comms.delay_steps", s.comms.delay_steps, 0),
+        ("comms.failures", s.comms.failures, []),
+    ]
+
+
+@dataclass(frozen=True)
+class SwarmComponents:
+    """What the swarm engine (several targets) reads beside the one-target components: every
+    target's parameters and id, and each agent's LMB filter."""
+
+    base: Components
+    targets: list[TargetParams]
+    ids: list[int | str]
+    lmb: LMBParams
+
+
+def lmb_params(s: Scenario) -> LMBParams:
+    """Each agent's LMB filter (several targets): the Bernoulli filter's model and particle
+    counts per track, its measurement-driven birth speed, the adaptive birth's constants."""
+    f = s.filter
+    return LMBParams(
+        survival_prob=float(f.survival_prob), particles=int(f.particles), birth_particles=int(f.birth_particles),
+        birth_rate=LMB_BIRTH_RATE, birth_existence_max=LMB_BIRTH_EXISTENCE_MAX,
+        birth_speed=float(f.measurement_birth_speed), accel_var=s.filter_accel_var, walls=f.walls,
+        low=np.asarray(s.area.low, dtype=float), high=np.asarray(s.area.high, dtype=float),
+        noise_std=np.asarray(s.sensor.noise_std, dtype=float), clutter_rate=float(s.sensor.clutter_rate),
+    )
+
+
+def several_targets(s: Scenario) -> bool:
+    """The scenario lists more than one target: it runs on the swarm engine."""
+    return len(s.target_list) > 1
+
+
+def build_swarm(s: Scenario) -> SwarmComponents:
+    """The swarm engine's components; an option it does not simulate yet is refused in one line."""
+    for key, value, runs in _swarm_unsupported(s):
+        if value != runs:
+            raise ConfigError(
+                f"{key}: {value!r} is not simulated with several targets yet; the swarm engine runs with {runs!r}"
+            )
+    return SwarmComponents(base=build(s), targets=targets_params(s), ids=target_ids(s), lmb=lmb_params(s))
+
+
 def figure_settings(s: Scenario) -> FigureSettings:
     """What the run's figure and replay draw beside the logs."""
     a, m = s.antenna, s.metrics
@@ -222,11 +286,14 @@ def warm_up_scenario(s: Scenario) -> Scenario:
     """The scenario's tiny twin (:mod:`trackjam.simulation.warmup`): same agents, solver and
     options, two steps, few particles, and a target present and detectable from the first step
     so the update kernels run too."""
-    target = s.target.model_copy(update={"appears": 1, "disappears": None, "occlusions": [], "stochastic": None})
+    present = {"appears": 1, "disappears": None, "occlusions": [], "stochastic": None}
+    target = s.target.model_copy(update=present)
+    targets = None if s.targets is None else [tg.model_copy(update=present) for tg in s.targets]
     return s.model_copy(
         update={
             "steps": WARM_STEPS,
             "target": target,
+            "targets": targets,
             "filter": s.filter.model_copy(update={"particles": 40, "birth_particles": 20}),
             "control": s.control.model_copy(update={"grasp": s.control.grasp.model_copy(
                 update={"samples": min(s.control.grasp.samples, 20), "iterations": 2})}),

@@ -28,6 +28,8 @@ RUN_FILES = (
     "steps.parquet",
     "agents.parquet",
     "measurements.parquet",
+    "targets.parquet",  # several targets (the swarm engine)
+    "tracks.parquet",
     "run.png",
     "replay.html",
 )
@@ -97,10 +99,15 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
 
     put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
     put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
-    put("steps.parquet", lambda p: write_parquet(result.steps, p))
-    put("agents.parquet", lambda p: write_parquet(result.agents, p))
-    put("measurements.parquet", lambda p: write_parquet(result.measurements, p))
-    if figures:
+    tables = getattr(result, "tables", None) or {
+        "steps": result.steps, "agents": result.agents, "measurements": result.measurements}
+    for name, columns in tables.items():
+        put(f"{name}.parquet", lambda p, columns=columns: write_parquet(columns, p))
+    if figures and "tracks" in tables:
+        from trackjam.viz.swarm import plot_swarm
+
+        put("run.png", lambda p: plot_swarm(tables, figure_settings(result.scenario), p))
+    elif figures:
         from trackjam.viz.figure import plot_run
         from trackjam.viz.replay import write_replay
 

@@ -1,0 +1,288 @@
+"""The swarm engine (ours, issue 12): a run with several targets, one step at a time.
+
+``SwarmSimulation(scenario)``, ``reset()``, ``step()`` as :class:`trackjam.simulation.engine.
+Simulation`, a thin loop over the several-target blocks. One step:
+
+1. the truth swarm moves (:class:`trackjam.world.swarm.TruthSwarm`);
+2. every agent predicts its LMB filter (:class:`trackjam.estimation.lmb.LMBFilter`); the
+   predicted tracks are fused across agents (:func:`trackjam.estimation.lmb_fusion.fuse_tracks`)
+   and the confirmed ones (fused existence > 0.5), most likely first, at most ``MAX_AIMS``, give
+   the planning aims x_bar_k;
+3. :func:`trackjam.control.assignment.solve_assignment` picks each agent's (move, level, aim);
+   with no aim the team hovers at its last aims with the fall-back levels
+   (:func:`trackjam.control.fallback.fallback_levels`);
+4. antennas point at the aim they serve (``antenna.pointing: aim``) or, under ``truth``, at the
+   true position of the target matched to that aim within ``metrics.gate`` (the aim when none
+   is); :func:`trackjam.radio.measurement.target_exposure` gives each target's power and p_D;
+5. every agent scans (:func:`trackjam.radio.measurement.sample_scan_multi`) and updates its
+   filter; the tracks are fused across agents and, with ``fusion.feedback``, every track of a
+   cluster of two or more agents takes the fused existence and is redrawn from the fused
+   Gaussian when there is one (a track only one agent holds is left as it is: fusion changed
+   nothing, and redrawing the many short-lived clutter births would cost most of the step);
+6. the reported tracks are judged against the detectable targets (:mod:`trackjam.metrics.multi`).
+
+Every message arrives (the ``comms`` faults are one-target only so far) and the team acts as one.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from trackjam.control.assignment import SolverOptions, build_assignment, solve_assignment
+from trackjam.control.fallback import fallback_levels
+from trackjam.estimation.fusion import CONFIRM
+from trackjam.estimation.lmb import LMBFilter, Track
+from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks
+from trackjam.metrics.multi import gated_assignment, ospa_parts
+from trackjam.radio.antenna import interference_matrix
+from trackjam.radio.measurement import sample_scan_multi, target_exposure
+from trackjam.simulation.build import SwarmComponents, build_swarm
+from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
+from trackjam.world.swarm import TruthSwarm
+
+if TYPE_CHECKING:  # the scenario is read in one place, simulation/build.py
+    from trackjam.simulation.build import Scenario
+
+MAX_AIMS = 4  # the team plans at its most likely confirmed tracks, at most this many (ours)
+
+
+@dataclass
+class SwarmAgent:
+    """One pursuer of the swarm run: position, aim, the track it serves, filter and streams."""
+
+    index: int
+    position: np.ndarray
+    aim: np.ndarray
+    filter: LMBFilter
+    sensor_rng: np.random.Generator
+    plan_rng: np.random.Generator
+    serves: str = ""  # label of the track its cone serves; "" while hovering
+
+
+@dataclass(frozen=True)
+class SwarmRecord:
+    """One step's rows of the swarm logs (:mod:`trackjam.simulation.swarm_logs`)."""
+
+    t: int
+    step: dict
+    targets: dict
+    tracks: dict
+    agents: dict
+    scans: list[tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class SwarmResult:
+    """A swarm run: the scenario, its five logs as column arrays (``tables``: steps, targets,
+    tracks, agents, measurements) and the summary."""
+
+    scenario: Scenario
+    tables: dict[str, dict[str, np.ndarray]]
+    summary: dict
+
+    @property
+    def steps(self) -> dict[str, np.ndarray]:
+        return self.tables["steps"]
+
+    @property
+    def agents(self) -> dict[str, np.ndarray]:
+        return self.tables["agents"]
+
+    @property
+    def measurements(self) -> dict[str, np.ndarray]:
+        return self.tables["measurements"]
+
+
+def cue_tracks(lmb: LMBFilter, first: np.ndarray, present: list[bool],
+               cue: tuple[float, float, float]) -> list[Track]:
+    """``filter.cue`` for several targets (ours): the team is briefed, as the one-target engine
+    is, on where each target present from step 1 is first seen; every agent's filter starts with
+    one track per such target, labelled (0, k), existence e_0, particles from a Gaussian around
+    its first position (position std, velocity std as ``cue``), at rest."""
+    existence, pos_std, vel_std = cue
+    n = lmb.p.particles
+    tracks = []
+    for k, (x, here) in enumerate(zip(first, present)):
+        if not here or not np.all(np.isfinite(x)):
+            continue
+        X = np.concatenate([x, np.zeros(3)]) + lmb.rng.standard_normal((n, 6)) * np.array([pos_std] * 3 + [vel_std] * 3)
+        tracks.append(Track((0, k), float(existence), X, np.full(n, -np.log(n))))
+    return tracks
+
+
+def track_label(track: FusedTrack) -> str:
+    """The team's label of a fused track: its oldest member's, ``aA:B.I`` (agent A's track born
+    at step B as birth I), so the label stays while that track lives whoever else joins."""
+    agent, (born, i) = min(track.members, key=lambda m: (m[1][0], m[0], m[1][1]))
+    return f"a{agent}:{born}.{i}"
+
+
+def confirmed(tracks: list[FusedTrack]) -> list[FusedTrack]:
+    """The fused tracks the team believes in (existence > 0.5, with a fused state), most likely
+    first (ties by label)."""
+    sure = [f for f in tracks if f.estimate.existence > CONFIRM and f.estimate.mean is not None]
+    return sorted(sure, key=lambda f: (-f.estimate.existence, track_label(f)))
+
+
+class SwarmSimulation:
+    """A scenario with several targets run one step at a time; ``step()`` lets the configured
+    solver decide the moves, levels and served aims."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.c: SwarmComponents = build_swarm(scenario)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to t = 0 with fresh random streams from the scenario's seed."""
+        c, b = self.c, self.c.base
+        truth_seed, agent_seeds, _ = b.seed_tree()
+        self.truth = TruthSwarm.from_seed(c.targets, c.ids, truth_seed)
+        first = self.truth.first_positions
+        centre = (b.low + b.high) / 2
+        self.agents = []
+        for j, (u, (filter_seed, sensor_seed, plan_seed)) in enumerate(zip(b.initial_positions, agent_seeds)):
+            # agent j first points at target j mod K (where it will appear), or at initial_aim
+            aim = b.initial_aim if b.initial_aim is not None else first[j % len(first)]
+            aim = centre if not np.all(np.isfinite(aim)) else aim
+            lmb = LMBFilter(c.lmb, b.antenna, np.random.default_rng(filter_seed))
+            if b.cue is not None:
+                lmb.tracks = cue_tracks(lmb, first, [p.appears <= 1 and p.stochastic is None for p in c.targets], b.cue)
+            self.agents.append(SwarmAgent(j, np.array(u, dtype=float), np.array(aim, dtype=float), lmb,
+                                          np.random.default_rng(sensor_seed), np.random.default_rng(plan_seed)))
+        self.log = SwarmLog([str(i) for i in c.ids])
+        self.t = 0
+
+    @property
+    def done(self) -> bool:
+        return self.t >= self.c.base.steps
+
+    @property
+    def positions(self) -> np.ndarray:
+        return np.array([a.position for a in self.agents])
+
+    def step(self) -> SwarmRecord:
+        b = self.c.base
+        if self.done:
+            raise RuntimeError(f"the run has ended (step {self.t} of {b.steps}); call reset()")
+        t0 = time.perf_counter()
+        self.t = t = self.t + 1
+        truth = self.truth
+        truth.step(t)
+        predicted = fuse_tracks([a.filter.predict() for a in self.agents])
+        aims = confirmed(predicted)[:MAX_AIMS]
+        t_plan = time.perf_counter()
+        plan = self._plan(aims)
+        solve_s = time.perf_counter() - t_plan
+        prev = self.positions
+        for a, move, k in zip(self.agents, plan["move"], plan["serve"]):
+            a.position = a.position + b.displacements[move]
+            if k >= 0:
+                a.aim = np.array(aims[k].estimate.mean[:3], dtype=float)
+                a.serves = track_label(aims[k])
+            else:
+                a.serves = ""
+        positions = self.positions
+        points = self._points(aims, plan["serve"])
+        level_w = b.antenna.levels_w[plan["level"]]
+        to_target, p_d = target_exposure(np.nan_to_num(truth.positions), truth.exists, truth.detectable, positions,
+                                         points, level_w, b.antenna)
+        received = to_target.sum(axis=0)
+        truth.apply_jamming(t, received)
+        interference = interference_matrix(positions, points, level_w, b.antenna).sum(axis=1)
+        X = truth.detectable_positions
+        scans = [sample_scan_multi(a.sensor_rng, X, a.position, p_d[j], b.noise_std, b.clutter_rate,
+                                   b.antenna.max_range) for j, a in enumerate(self.agents)]
+        own = [a.filter.update(Z, a.position, points[j], float(level_w[j]))
+               for j, (a, (Z, _)) in enumerate(zip(self.agents, scans))]
+        team = fuse_tracks(own)
+        if b.team.feedback:
+            self._feed_back(team)
+        report = confirmed(team)
+        labels = [track_label(f) for f in report]
+        est = np.array([f.estimate.mean[:3] for f in report]).reshape(-1, 3)
+        det = X[np.isfinite(X).all(axis=1)]
+        ospa, loc, card = ospa_parts(det, est, c=b.ospa_cutoff, p=b.ospa_order)
+        holder = gated_assignment(X, est, b.gate)
+        target_of = np.full(len(report), -1)
+        target_of[holder[holder >= 0]] = np.flatnonzero(holder >= 0)
+        ids = self.log.ids
+        record = SwarmRecord(
+            t=t,
+            step=dict(t=t, targets_present=int(truth.exists.sum()), targets_detectable=int(truth.detectable.sum()),
+                      tracks=len(report), aims=len(aims), ospa=ospa, ospa_loc=loc, ospa_card=card,
+                      mode=plan["mode"], objective=plan["objective"], optimal=plan["optimal"], gap=plan["gap"],
+                      solve_s=solve_s, step_s=time.perf_counter() - t0),
+            targets=dict(t=t, target=ids, exists=truth.exists, detectable=truth.detectable, truth=truth.positions,
+                         received_w=received, held=holder >= 0,
+                         track=[labels[h] if h >= 0 else "" for h in holder],
+                         downed=[d is not None for d in truth.downed_at]),
+            tracks=dict(t=t, track=labels, existence=[f.estimate.existence for f in report], est=est,
+                        members=[len(f.members) for f in report],
+                        target=[ids[k] if k >= 0 else "" for k in target_of]),
+            agents=dict(t=t, prev=prev, pos=positions, level_index=plan["level"], power_w=level_w, point=points,
+                        serves=[a.serves for a in self.agents],
+                        detections=[int((src >= 0).sum()) for _, src in scans],
+                        measurements=[len(Z) for Z, _ in scans],
+                        tracks=[sum(e.existence > CONFIRM for e in mine) for mine in own],
+                        interference_w=interference, jammed=interference >= b.antenna.delta_w,
+                        to_targets_w=to_target.sum(axis=1), mode=[plan["mode"]] * len(self.agents)),
+            scans=scans,
+        )
+        self.log.add(record)
+        return record
+
+    def _plan(self, aims: list[FusedTrack]) -> dict:
+        """The step's joint control: the solver's over the aims, or the hover fall-back."""
+        b, n = self.c.base, len(self.agents)
+        positions = self.positions
+        if not aims:
+            levels = fallback_levels(positions, np.array([a.aim for a in self.agents]), b.antenna,
+                                     b.plan.constraints)
+            return dict(mode="hover", move=np.zeros(n, dtype=np.int64), level=np.asarray(levels, dtype=np.int64),
+                        serve=np.full(n, -1), objective=np.nan, optimal=False, gap=np.nan)
+        p = b.plan
+        x_bar = np.clip(np.array([f.estimate.mean[:3] for f in aims]), b.low, b.high)
+        problem = build_assignment(positions, x_bar, b.displacements, b.antenna, b.low, b.high,
+                                   min(p.at_least, n), p.constraints, "sum")
+        options = SolverOptions(samples=p.samples, iterations=p.iterations, neighbours=p.neighbours,
+                                threads=p.threads, time_limit_s=p.time_limit_s)
+        sol = solve_assignment(problem, p.solver, [a.plan_rng for a in self.agents], options)
+        return dict(mode="track", move=np.asarray(sol.move, dtype=np.int64),
+                    level=np.asarray(sol.level, dtype=np.int64), serve=np.asarray(sol.target, dtype=np.int64),
+                    objective=float(sol.objective), optimal=bool(sol.optimal), gap=float(sol.gap))
+
+    def _points(self, aims: list[FusedTrack], serve: np.ndarray) -> np.ndarray:
+        """Where each antenna points: its aim, or under ``pointing: truth`` the true position of
+        the target matched (within metrics.gate) to the aim it serves."""
+        b = self.c.base
+        points = np.array([a.aim for a in self.agents])
+        if b.pointing != "truth" or not aims:
+            return points
+        truth = self.truth.positions
+        aim_of = gated_assignment(truth, np.array([f.estimate.mean[:3] for f in aims]), b.gate)
+        for k, a in enumerate(aim_of):
+            if a >= 0:
+                points[serve == a] = truth[k]
+        return points
+
+    def _feed_back(self, team: list[FusedTrack]) -> None:
+        """Fusion feedback per cluster of two or more agents' tracks (the module docstring)."""
+        for f in team:
+            if len(f.members) < 2:
+                continue
+            e = f.estimate
+            for agent, label in f.members:
+                self.agents[agent].filter.reset_track(label, e.existence, e.mean, e.cov)
+
+    def result(self) -> SwarmResult:
+        """The logs so far, as column arrays, and their summary."""
+        b = self.c.base
+        tables = self.log.columns()
+        summary = swarm_summary(tables, self.log.ids, name=b.name, seed=b.seed, solver=b.plan.solver,
+                                n_agents=b.n_agents, gate=b.gate, downed_at=self.truth.downed_at)
+        return SwarmResult(self.scenario, tables, summary)

@@ -1,0 +1,195 @@
+"""The swarm engine (several targets): a thin loop over the blocks whose logs agree with the
+metrics recomputed from them, one seed giving one run, and the options it does not simulate
+refused in one line."""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.errors import ConfigError
+from trackjam.estimation.bernoulli import weighted_moments
+from trackjam.estimation.fusion import FusedEstimate
+from trackjam.estimation.lmb import LMBFilter
+from trackjam.estimation.lmb_fusion import FusedTrack
+from trackjam.metrics.multi import multi_track_quality, ospa_parts
+from trackjam.simulation.build import build, build_swarm, lmb_params
+from trackjam.simulation.loop import simulate
+from trackjam.simulation.swarm import SwarmSimulation, confirmed, cue_tracks, track_label
+from trackjam.simulation.swarm_logs import truth_and_estimates
+from trackjam.simulation.swarm_schema import SWARM_TABLES
+from trackjam.viz.swarm import served_targets
+
+README = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+
+TWO = [
+    "target=null",
+    "targets=[{id: a, initial: [20, 20, 20, 1.5, 2.0, 1.7]}, {id: b, initial: [60, 60, 60, -1, 0, 0]}]",
+    "agents.initial=[[30, 30, 30], [20, 10, 10], [60, 50, 50]]",
+    "filter.particles=300", "filter.birth_particles=100",
+    "filter.cue={existence: 0.9, position_std: 2, velocity_std: 2}",
+    "antenna.pointing=aim", "steps=5", "fusion.existence=mean", "control.fallback=hover",
+]
+
+
+def two(*extra, solver="greedy"):
+    return load_scenario("paper-fig3", [*TWO, f"control.solver={solver}", *extra])
+
+
+@pytest.fixture(scope="module")
+def run():
+    return simulate(two(solver="exact"))
+
+
+def test_a_run_writes_every_declared_column_with_one_row_per_step_target_and_agent(run):
+    T, K, N = 5, 2, 3
+    for name, schema in SWARM_TABLES.items():
+        cols = run.tables[name]
+        assert list(cols) == [c.name for c in schema]
+        for c in schema:
+            assert np.asarray(cols[c.name]).dtype.kind == np.dtype(c.dtype).kind, (name, c.name)
+    assert len(run.steps["t"]) == T and len(run.tables["targets"]["t"]) == T * K and len(run.agents["t"]) == T * N
+    assert list(run.tables["targets"]["target"][:2]) == ["a", "b"]
+    assert np.array_equal(run.steps["tracks"], np.bincount(run.tables["tracks"]["t"], minlength=T + 1)[1:])
+
+
+def test_the_summary_is_the_multi_target_metrics_of_the_logs(run):
+    m = run.summary
+    truth, est = truth_and_estimates(run.tables, ["a", "b"])
+    q = multi_track_quality(truth, est, 5.0, ["a", "b"])
+    assert {k: m[k] for k in q} == q
+    held = run.tables["targets"]["held"].reshape(5, 2)
+    assert m["held_steps"] == [int(v) for v in held.sum(axis=0)]
+    for t, x, (_, pos) in zip(run.steps["t"], truth, est):
+        o = ospa_parts(x[np.isfinite(x).all(axis=1)], pos)
+        np.testing.assert_allclose([run.steps[k][t - 1] for k in ("ospa", "ospa_loc", "ospa_card")], o)
+    assert m["ospa_mean"] == pytest.approx(np.mean(run.steps["ospa"]))
+    assert m["jamming_incidents"] == [int(v) for v in run.agents["jammed"].reshape(5, 3).sum(axis=0)]
+    # the cue puts a confirmed track on each target at the start: both are held at step 1
+    assert held[0].all()
+
+
+def test_a_track_holds_the_target_whose_row_names_it(run):
+    tg, tr = run.tables["targets"], run.tables["tracks"]
+    for t, target, track in zip(tg["t"], tg["target"], tg["track"]):
+        if track:
+            assert tr["target"][(tr["t"] == t) & (tr["track"] == track)].tolist() == [target]
+
+
+def test_one_seed_gives_one_run_and_reset_starts_over():
+    s = two()
+    a = simulate(s)
+    sim = SwarmSimulation(s)
+    for _ in range(2):
+        sim.step()
+    sim.reset()
+    while not sim.done:
+        sim.step()
+    b = sim.result()
+    for name in SWARM_TABLES:
+        for k, v in a.tables[name].items():
+            if k not in ("solve_s", "step_s"):
+                np.testing.assert_array_equal(v, b.tables[name][k], err_msg=f"{name}.{k}")
+    c = simulate(two("seed=2"))
+    assert not np.array_equal(a.tables["targets"]["truth_x"], c.tables["targets"]["truth_x"])
+
+
+def test_antennas_point_at_the_served_aim_or_under_truth_at_the_matched_target():
+    aim = SwarmSimulation(two())
+    r = aim.step()
+    pts = np.stack([r.agents["point"][:, i] for i in range(3)], axis=1)
+    np.testing.assert_array_equal(pts, np.array([a.aim for a in aim.agents]))
+    truth = SwarmSimulation(two("antenna.pointing=truth"))
+    r = truth.step()
+    X = truth.truth.positions
+    for j, p in enumerate(r.agents["point"]):
+        if r.agents["serves"][j]:
+            assert min(np.linalg.norm(X - p, axis=1)) == 0.0 or np.array_equal(p, truth.agents[j].aim)
+    # truth pointing puts the cones on the targets: every serving agent points exactly at one
+    served = [p for j, p in enumerate(r.agents["point"]) if r.agents["serves"][j]]
+    assert served and all(min(np.linalg.norm(X - p, axis=1)) == 0.0 for p in served)
+
+
+def test_hover_without_a_confirmed_track_keeps_the_aims_and_takes_the_fallback_levels():
+    from trackjam.control.fallback import fallback_levels
+
+    sim = SwarmSimulation(two("filter.cue=null"))
+    aims = np.array([a.aim for a in sim.agents])
+    u = sim.positions
+    r = sim.step()
+    assert r.step["mode"] == "hover" and list(r.agents["serves"]) == ["", "", ""]
+    np.testing.assert_array_equal(r.agents["pos"], u)
+    np.testing.assert_array_equal(np.array([a.aim for a in sim.agents]), aims)
+    np.testing.assert_array_equal(r.agents["level_index"], fallback_levels(u, aims, sim.c.base.antenna, True))
+
+
+def test_cue_tracks_sit_at_each_present_targets_first_position():
+    s = two("filter.particles=4000")
+    lmb = LMBFilter(lmb_params(s), build_swarm(s).base.antenna, np.random.default_rng(0))
+    first = np.array([[20.0, 20, 20], [60, 60, 60], [np.nan] * 3])
+    tracks = cue_tracks(lmb, first, [True, False, True], (0.9, 2.0, 2.0))
+    assert [t.label for t in tracks] == [(0, 0)] and tracks[0].r == 0.9
+    mean, cov = weighted_moments(tracks[0].X, np.exp(tracks[0].log_w))
+    np.testing.assert_allclose(mean, [20, 20, 20, 0, 0, 0], atol=0.2)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), 2.0, rtol=0.06)
+
+
+def _fused(members, e):
+    return FusedTrack(members, FusedEstimate(e, np.zeros(6), np.eye(6), np.zeros(0)))
+
+
+def test_a_team_track_is_labelled_by_its_oldest_member_and_the_confirmed_come_most_likely_first():
+    f = _fused(((2, (3, 0)), (0, (5, 1)), (1, (3, 1))), 0.7)
+    assert track_label(f) == "a1:3.1"  # born first; ties to the lower agent
+    g = _fused(((0, (1, 0)),), 0.9)
+    h = _fused(((1, (1, 0)),), 0.4)
+    assert [track_label(x) for x in confirmed([f, h, g])] == ["a0:1.0", "a1:3.1"]
+
+
+def test_served_targets_reads_which_agent_serves_which_target(run):
+    serve = served_targets(run.tables, ["a", "b"])
+    ag, tr = run.agents, run.tables["tracks"]
+    for t, j, lab in zip(ag["t"], ag["agent"], ag["serves"]):
+        held = tr["target"][(tr["t"] == t) & (tr["track"] == lab)]
+        want = -2 if not lab else (["a", "b"].index(held[0]) if len(held) and held[0] else -1)
+        assert serve[t - 1, j] == want
+
+
+def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_options_are_named():
+    with pytest.raises(ConfigError, match="^targets: 2 targets given"):
+        build(two())
+    for key, value in (("comms.loss", "0.1"), ("fusion.share", "scans"), ("control.fallback", "search")):
+        with pytest.raises(ConfigError, match=f"^{re.escape(key)}: .* not simulated with several targets"):
+            SwarmSimulation(two(f"{key}={value}"))
+
+
+def _names(heading: str) -> set[str]:
+    part = README.split(heading, 1)[1]
+    rows = [line for line in part.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
+    names = set()
+    for row in rows:
+        for span in re.findall(r"`([^`]+)`", row.split(" | ")[0]):
+            names |= {span[:-5] + k for k in "xyz"} if span.endswith("_x/y/z") else (
+                set("xyz") if span == "x/y/z" else {span})
+    return names
+
+
+@pytest.mark.parametrize("table", list(SWARM_TABLES))
+def test_readme_documents_exactly_each_swarm_log(table):
+    assert _names(f"Several targets: `{table}.parquet`") == {c.name for c in SWARM_TABLES[table]}
+
+
+def test_write_run_writes_the_swarm_logs_and_its_figure(run, tmp_path):
+    import pyarrow.parquet as pq
+
+    from trackjam.simulation.output import write_run
+
+    files = write_run(run, tmp_path / "out")
+    assert sorted(p.name for p in files) == sorted(
+        ["scenario.yaml", "summary.json", "run.png", *(f"{name}.parquet" for name in SWARM_TABLES)])
+    assert (tmp_path / "out" / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    back = pq.read_table(tmp_path / "out" / "targets.parquet").to_pydict()
+    assert back["target"] == list(run.tables["targets"]["target"])
+    write_run(run, tmp_path / "out")  # the same run again into its own folder: allowed
