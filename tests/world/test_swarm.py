@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.simulation.build import build, target_ids, target_params, targets_params
+from trackjam.simulation.build import seed_tree, target_ids, target_params, targets_params
 from trackjam.world.swarm import TruthSwarm, target_streams
 from trackjam.world.target import TruthTarget
 
@@ -18,7 +18,7 @@ LIST = (
 
 def _swarm(overrides, seed_node=None):
     s = load_scenario("paper-fig3", overrides)
-    truth_seed = build(s).seed_tree()[0] if seed_node is None else seed_node
+    truth_seed = seed_tree(s.seed, s.n_agents)[0] if seed_node is None else seed_node
     return s, TruthSwarm.from_seed(targets_params(s), target_ids(s), truth_seed)
 
 
@@ -33,7 +33,7 @@ def _trace(swarm, steps):
 @pytest.mark.parametrize("overrides", [[], ["target.initial=null"], ["target.stochastic={birth_prob: 0.3, survival_prob: 0.8}"]])
 def test_one_target_is_todays_truth_bit_for_bit(overrides):
     s, swarm = _swarm(overrides)
-    truth_seed = build(s).seed_tree()[0]
+    truth_seed = seed_tree(s.seed, s.n_agents)[0]
     today = TruthTarget(target_params(s), np.random.default_rng(truth_seed))  # as the engine builds it
     assert swarm.ids == (0,)
     for t in range(1, 41):

@@ -110,6 +110,15 @@ def displacements(s: Scenario) -> np.ndarray:
     return displacement_set(a.radial_steps, a.n_inclination, a.n_azimuth)
 
 
+def seed_tree(seed: int, n_agents: int) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]],
+                                                 np.random.SeedSequence]:
+    """One root seed -> the truth's stream, three streams per agent (filter, sensor, plan) and
+    the message exchange's stream (losses)."""
+    root = np.random.SeedSequence(seed)
+    truth_seed, agents_seed, comms_seed = root.spawn(3)
+    return truth_seed, [s.spawn(3) for s in agents_seed.spawn(n_agents)], comms_seed
+
+
 @dataclass(frozen=True)
 class Components:
     name: str
@@ -137,11 +146,7 @@ class Components:
     cue: tuple[float, float, float] | None  # filter.cue as (e_0, position std [m], velocity std [m/s])
 
     def seed_tree(self) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]], np.random.SeedSequence]:
-        """One root seed -> the truth's stream, three streams per agent (filter, sensor, plan) and
-        the message exchange's stream (losses)."""
-        root = np.random.SeedSequence(self.seed)
-        truth_seed, agents_seed, comms_seed = root.spawn(3)
-        return truth_seed, [s.spawn(3) for s in agents_seed.spawn(self.n_agents)], comms_seed
+        return seed_tree(self.seed, self.n_agents)
 
 
 def one_target(s: Scenario) -> None:
