@@ -193,3 +193,30 @@ def test_write_run_writes_the_swarm_logs_and_its_figure(run, tmp_path):
     back = pq.read_table(tmp_path / "out" / "targets.parquet").to_pydict()
     assert back["target"] == list(run.tables["targets"]["target"])
     write_run(run, tmp_path / "out")  # the same run again into its own folder: allowed
+
+
+def _track(label, e, x, s=1.0):
+    from trackjam.estimation.lmb import TrackEstimate
+
+    return TrackEstimate(label, e, np.r_[x, 0.0, 0.0, 0.0], np.eye(6) * s ** 2)
+
+
+def test_a_cluster_is_fused_from_the_members_whose_cone_reached_it():
+    from trackjam.estimation.bernoulli import Estimate
+    from trackjam.estimation.fusion import fuse
+    from trackjam.estimation.lmb_fusion import fuse_tracks
+    from trackjam.simulation.swarm import informed_fusion
+
+    own = [[_track((0, 0), 0.9, [10.0, 10, 10], 0.5)], [_track((0, 0), 0.8, [11.0, 10, 10], 2.0)],
+           [_track((0, 0), 0.7, [10.0, 11, 10], 2.0)]]
+    team = fuse_tracks(own)
+    assert len(team) == 1 and len(team[0].members) == 3
+    # only agent 0 saw it: the cluster is agent 0's track alone
+    (f,) = informed_fusion(team, own, [np.array([True]), np.array([False]), np.array([False])])
+    want = fuse([Estimate(0.9, own[0][0].mean, own[0][0].cov)])
+    assert f.members == team[0].members and f.estimate.existence == want.existence
+    np.testing.assert_array_equal(f.estimate.mean, want.mean)
+    # every member informed, or none: the fusion of the whole cluster
+    for flags in (True, False):
+        (g,) = informed_fusion(team, own, [np.array([flags])] * 3)
+        assert g is team[0]

@@ -15,7 +15,8 @@ Simulation`, a thin loop over the several-target blocks. One step:
    true position of the target matched to that aim within ``metrics.gate`` (the aim when none
    is); :func:`trackjam.radio.measurement.target_exposure` gives each target's power and p_D;
 5. every agent scans (:func:`trackjam.radio.measurement.sample_scan_multi`) and updates its
-   filter; the tracks are fused across agents and, with ``fusion.feedback``, every track of a
+   filter; the tracks are fused across agents, each cluster from the members whose cone reached
+   it when some did (:func:`informed_fusion`), and, with ``fusion.feedback``, every track of a
    cluster of two or more agents takes the fused existence and is redrawn from the fused
    Gaussian when there is one (a track only one agent holds is left as it is: fusion changed
    nothing, and redrawing the many short-lived clutter births would cost most of the step);
@@ -34,11 +35,12 @@ import numpy as np
 
 from trackjam.control.assignment import SolverOptions, build_assignment, solve_assignment
 from trackjam.control.fallback import fallback_levels
-from trackjam.estimation.fusion import CONFIRM
-from trackjam.estimation.lmb import LMBFilter, Track
+from trackjam.estimation.bernoulli import Estimate
+from trackjam.estimation.fusion import CONFIRM, fuse
+from trackjam.estimation.lmb import LMBFilter, Track, TrackEstimate
 from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks
 from trackjam.metrics.multi import gated_assignment, ospa_parts
-from trackjam.radio.antenna import interference_matrix
+from trackjam.radio.antenna import detection_probability, interference_matrix
 from trackjam.radio.measurement import sample_scan_multi, target_exposure
 from trackjam.simulation.build import SwarmComponents, build_swarm
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
@@ -112,6 +114,23 @@ def cue_tracks(lmb: LMBFilter, first: np.ndarray, present: list[bool],
         X = np.concatenate([x, np.zeros(3)]) + lmb.rng.standard_normal((n, 6)) * np.array([pos_std] * 3 + [vel_std] * 3)
         tracks.append(Track((0, k), float(existence), X, np.full(n, -np.log(n))))
     return tracks
+
+
+def informed_fusion(team: list[FusedTrack], own: list[list[TrackEstimate]],
+                    informed: list[np.ndarray]) -> list[FusedTrack]:
+    """Each cluster's estimate from its informed members only, when it has some and not all of
+    its members are (ours): a member whose cone did not reach the track this step (p_D = 0 at its
+    mean) holds a prediction, not news, and would pull the fused state back to it; with every
+    member informed (one target, every cone on it) this is the fusion of the whole cluster."""
+    out = []
+    for f in team:
+        index = [(a, next(i for i, e in enumerate(own[a]) if e.label == label)) for a, label in f.members]
+        told = [(a, i) for a, i in index if informed[a][i]]
+        if told and len(told) < len(index):
+            est = fuse([Estimate(own[a][i].existence, own[a][i].mean, own[a][i].cov) for a, i in told])
+            f = FusedTrack(f.members, est)
+        out.append(f)
+    return out
 
 
 def track_label(track: FusedTrack) -> str:
@@ -199,7 +218,7 @@ class SwarmSimulation:
                                    b.antenna.max_range) for j, a in enumerate(self.agents)]
         own = [a.filter.update(Z, a.position, points[j], float(level_w[j]))
                for j, (a, (Z, _)) in enumerate(zip(self.agents, scans))]
-        team = fuse_tracks(own)
+        team = informed_fusion(fuse_tracks(own), own, self._informed(own, points, level_w))
         if b.team.feedback:
             self._feed_back(team)
         report = confirmed(team)
@@ -269,6 +288,12 @@ class SwarmSimulation:
             if a >= 0:
                 points[serve == a] = truth[k]
         return points
+
+    def _informed(self, own: list[list[TrackEstimate]], points: np.ndarray, level_w: np.ndarray) -> list[np.ndarray]:
+        """Per agent and own track: its cone reached the track's mean this step (p_D > 0)."""
+        b = self.c.base
+        return [np.array([float(detection_probability(e.mean[:3], a.position, points[j], level_w[j], b.antenna)) > 0.0
+                          for e in mine], dtype=bool) for j, (a, mine) in enumerate(zip(self.agents, own))]
 
     def _feed_back(self, team: list[FusedTrack]) -> None:
         """Fusion feedback per cluster of two or more agents' tracks (the module docstring)."""
