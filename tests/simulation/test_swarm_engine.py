@@ -160,7 +160,7 @@ def test_served_targets_reads_which_agent_serves_which_target(run):
 def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_options_are_named():
     with pytest.raises(ConfigError, match="^targets: 2 targets given"):
         build(two())
-    for key, value in (("comms.loss", "0.1"), ("fusion.share", "scans"), ("control.fallback", "search")):
+    for key, value in (("comms.loss", "0.1"), ("fusion.report_spread", "8"), ("control.fallback", "search")):
         with pytest.raises(ConfigError, match=f"^{re.escape(key)}: .* not simulated with several targets"):
             SwarmSimulation(two(f"{key}={value}"))
 
@@ -220,3 +220,27 @@ def test_a_cluster_is_fused_from_the_members_whose_cone_reached_it():
     for flags in (True, False):
         (g,) = informed_fusion(team, own, [np.array([flags])] * 3)
         assert g is team[0]
+
+
+@pytest.mark.parametrize("share", ["posteriors", "scans"])
+def test_under_share_scans_every_agent_updates_on_every_teammates_scan(share, monkeypatch):
+    """fusion.share: scans hands each filter the N - 1 teammates' scans of the step, each taken
+    from that teammate's position with its antenna's pointing and level."""
+    seen = []
+    update = LMBFilter.update
+
+    def spy(self, Z, u, aim, level_w, others=()):
+        seen.append([(o.u.copy(), o.Z.shape) for o in others])
+        return update(self, Z, u, aim, level_w, others)
+
+    monkeypatch.setattr(LMBFilter, "update", spy)
+    sim = SwarmSimulation(two(f"fusion.share={share}"))
+    r = sim.step()
+    assert len(seen) == 3
+    for j, others in enumerate(seen):
+        if share == "posteriors":
+            assert others == []
+            continue
+        mates = [k for k in range(3) if k != j]
+        assert [tuple(u) for u, _ in others] == [tuple(sim.agents[k].position) for k in mates]
+        assert [shape[0] for _, shape in others] == [r.agents["measurements"][k] for k in mates]

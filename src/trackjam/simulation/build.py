@@ -210,7 +210,6 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     the scenario, the value the swarm engine runs with); a scenario that sets another is refused."""
     return [
         ("filter.visibility", s.filter.visibility, None),
-        ("fusion.share", s.fusion.share, "posteriors"),
         ("fusion.existence", s.fusion.existence, "mean"),
         ("fusion.report_spread", s.fusion.report_spread, None),
         ("control.plan_over", s.control.plan_over, "point"),

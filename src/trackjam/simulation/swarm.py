@@ -20,6 +20,9 @@ Simulation`, a thin loop over the several-target blocks. One step:
    cluster of two or more agents takes the fused existence and is redrawn from the fused
    Gaussian when there is one (a track only one agent holds is left as it is: fusion changed
    nothing, and redrawing the many short-lived clutter births would cost most of the step);
+   with ``fusion.share: scans`` every agent also updates on every teammate's scan of the step
+   (the LMB's iterated corrector), every member of a cluster is informed, and there is no
+   feedback (each filter already holds every scan);
 6. the reported tracks are judged against the detectable targets (:mod:`trackjam.metrics.multi`).
 
 Every message arrives (the ``comms`` faults are one-target only so far) and the team acts as one.
@@ -35,7 +38,7 @@ import numpy as np
 
 from trackjam.control.assignment import SolverOptions, build_assignment, solve_assignment
 from trackjam.control.fallback import fallback_levels
-from trackjam.estimation.bernoulli import Estimate
+from trackjam.estimation.bernoulli import Estimate, Scan
 from trackjam.estimation.fusion import CONFIRM, fuse
 from trackjam.estimation.lmb import LMBFilter, Track, TrackEstimate
 from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks
@@ -216,10 +219,16 @@ class SwarmSimulation:
         X = truth.detectable_positions
         scans = [sample_scan_multi(a.sensor_rng, X, a.position, p_d[j], b.noise_std, b.clutter_rate,
                                    b.antenna.max_range) for j, a in enumerate(self.agents)]
-        own = [a.filter.update(Z, a.position, points[j], float(level_w[j]))
+        shared = b.team.share == "scans"
+        sent = [Scan.of(Z, a.position, points[j], float(level_w[j]), b.antenna) if shared else None
+                for j, (a, (Z, _)) in enumerate(zip(self.agents, scans))]
+        own = [a.filter.update(Z, a.position, points[j], float(level_w[j]),
+                               [sc for k, sc in enumerate(sent) if k != j] if shared else ())
                for j, (a, (Z, _)) in enumerate(zip(self.agents, scans))]
-        team = informed_fusion(fuse_tracks(own), own, self._informed(own, points, level_w))
-        if b.team.feedback:
+        # with every scan in every filter each agent is informed of every track it holds
+        informed = [np.ones(len(m), dtype=bool) for m in own] if shared else self._informed(own, points, level_w)
+        team = informed_fusion(fuse_tracks(own), own, informed)
+        if b.team.feedback and not shared:
             self._feed_back(team)
         report = confirmed(team)
         labels = [track_label(f) for f in report]
