@@ -244,3 +244,14 @@ def test_under_share_scans_every_agent_updates_on_every_teammates_scan(share, mo
         mates = [k for k in range(3) if k != j]
         assert [tuple(u) for u, _ in others] == [tuple(sim.agents[k].position) for k in mates]
         assert [shape[0] for _, shape in others] == [r.agents["measurements"][k] for k in mates]
+
+
+def test_the_swarm_presets_list_their_targets():
+    from trackjam.config import preset_names, scenario_to_yaml
+
+    swarms = [n for n in preset_names() if n.startswith("swarm-")]
+    assert "swarm-3" in swarms
+    for name in swarms:
+        s = load_scenario(name)
+        assert len(s.target_list) == int(name.split("-")[1]) and "targets:" in scenario_to_yaml(s)
+        SwarmSimulation(s)  # every option it sets is one the swarm engine simulates
