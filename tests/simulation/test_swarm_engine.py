@@ -15,7 +15,7 @@ from trackjam.estimation.fusion import FusedEstimate
 from trackjam.estimation.lmb import LMBFilter
 from trackjam.estimation.lmb_fusion import FusedTrack
 from trackjam.metrics.multi import multi_track_quality, ospa_parts
-from trackjam.simulation.build import build, build_swarm, lmb_params
+from trackjam.simulation.build import build_swarm, lmb_params
 from trackjam.simulation.loop import simulate
 from trackjam.simulation.swarm import SwarmSimulation, confirmed, cue_tracks, track_label
 from trackjam.simulation.swarm_logs import truth_and_estimates
@@ -158,8 +158,10 @@ def test_served_targets_reads_which_agent_serves_which_target(run):
 
 
 def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_options_are_named():
+    from trackjam.simulation.engine import Simulation
+
     with pytest.raises(ConfigError, match="^targets: 2 targets given"):
-        build(two())
+        Simulation(two())
     for key, value in (("comms.loss", "0.1"), ("fusion.report_spread", "8"), ("control.fallback", "search")):
         with pytest.raises(ConfigError, match=f"^{re.escape(key)}: .* not simulated with several targets"):
             SwarmSimulation(two(f"{key}={value}"))
