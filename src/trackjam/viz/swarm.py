@@ -62,7 +62,8 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
         top.plot(tg["truth_x"][rows], tg["truth_y"][rows], color=colours[k], lw=2.2, label=f"target {name}")
     hold = np.array([ids.index(x) if x in ids else -1 for x in tr["target"]], dtype=np.int64)
     dot = [colours[h] if h >= 0 else NONE_COLOUR for h in hold]
-    top.scatter(tr["est_x"], tr["est_y"], c=dot, s=12, marker="o", edgecolors="none", label="reported tracks")
+    top.scatter(tr["est_x"], tr["est_y"], c=dot, s=12, marker="o", edgecolors="none")
+    top.scatter([], [], c=NONE_COLOUR, s=12, label="reported tracks (grey: false)")
     top.set_xlim(fs.low[0], fs.high[0])
     top.set_ylim(fs.low[1], fs.high[1])
     top.set_aspect("equal")
