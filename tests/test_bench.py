@@ -81,3 +81,11 @@ def test_a_bad_json_path_is_refused_before_any_benchmark(tmp_path, where, words)
     (tmp_path / "folder").mkdir()
     r = CliRunner().invoke(app, ["bench", "--quick", "--only", "filter", "--json", str(tmp_path / where)])
     assert r.exit_code == 2 and words in r.output and "running" not in r.output
+
+
+def test_the_run_benchmark_times_a_several_target_preset_through_the_swarm_engine():
+    from trackjam.benchmarks.run import bench_run
+
+    r = bench_run("exact", repeats=1, steps=2, preset="swarm-3")
+    assert r["name"] == "run swarm-3 (exact)" and r["steps"] == 2 and r["repeats"] == 1
+    assert r["step_ms_median"] >= r["solve_ms_median"] > 0.0

@@ -28,7 +28,8 @@ def _groups(quick: bool) -> dict:
         "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)},
                            {"name": "LMB filter step, 3 targets", **lmb.bench_lmb_step(repeats=5 if quick else 100)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
-        "run": lambda: [run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")],
+        "run": lambda: [*(run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")),
+                        run.bench_run("exact", repeats=1, steps=5 if quick else None, preset="swarm-3")],
         "env": lambda: [env.bench_env(episodes=1 if quick else 5)],
     }
 

@@ -1,4 +1,5 @@
-"""Benchmark of whole runs: the paper's Fig. 3 scenario, wall time per step."""
+"""Benchmark of whole runs: the paper's Fig. 3 scenario (and `swarm-3`, several targets), wall
+time per step."""
 
 from __future__ import annotations
 
@@ -7,17 +8,17 @@ import time
 import numpy as np
 
 
-def bench_run(solver: str, repeats: int = 3, steps: int | None = None) -> dict:
-    """Wall time of `paper-fig3` with ``solver`` (compilation warmed up by a first short run)."""
+def bench_run(solver: str, repeats: int = 3, steps: int | None = None, preset: str = "paper-fig3") -> dict:
+    """Wall time of ``preset`` with ``solver`` (compilation warmed up by a first short run)."""
     from trackjam.simulation.build import build, load_scenario, with_seed
     from trackjam.simulation.loop import simulate
 
     overrides = [f"control.solver={solver}"]
     if steps is not None:
         overrides.append(f"steps={steps}")
-    s = load_scenario("paper-fig3", overrides)
+    s = load_scenario(preset, overrides)
     c = build(s)
-    simulate(load_scenario("paper-fig3", overrides + ["steps=3"]))  # compile and cache
+    simulate(load_scenario(preset, overrides + ["steps=3"]))  # compile and cache
     totals, per_step, solve = [], [], []
     for r in range(repeats):
         t0 = time.perf_counter()
@@ -26,7 +27,7 @@ def bench_run(solver: str, repeats: int = 3, steps: int | None = None) -> dict:
         per_step.append(float(np.mean(res.steps["step_s"])))
         solve.append(float(np.mean(res.steps["solve_s"])))
     return {
-        "name": f"run paper-fig3 ({solver})",
+        "name": f"run {preset} ({solver})",
         "steps": c.steps,
         "repeats": repeats,
         "run_s_median": float(np.median(totals)),
