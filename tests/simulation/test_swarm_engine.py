@@ -257,3 +257,23 @@ def test_the_swarm_presets_list_their_targets():
         s = load_scenario(name)
         assert len(s.target_list) == int(name.split("-")[1]) and "targets:" in scenario_to_yaml(s)
         SwarmSimulation(s)  # every option it sets is one the swarm engine simulates
+
+
+@pytest.mark.parametrize("objective", ["sum", "min"])
+def test_the_team_objective_is_the_configured_one(monkeypatch, objective):
+    """control.team_objective reaches every step's assignment problem, and the logged objective
+    is that rule over the targets' Xi_k."""
+    import trackjam.simulation.swarm as swarm
+
+    seen = []
+    build = swarm.build_assignment
+
+    def spy(*args, **kw):
+        problem = build(*args, **kw)
+        seen.append(problem.objective)
+        return problem
+
+    monkeypatch.setattr(swarm, "build_assignment", spy)
+    r = simulate(two(f"control.team_objective={objective}", solver="exact"))
+    assert seen and set(seen) == {objective}
+    assert np.all(np.isfinite(r.steps["objective"][r.steps["mode"] == "track"]))

@@ -427,6 +427,11 @@ class Control(_Model):
         description="lambda, aim lead [steps] (ours): plan and point at x_bar + lambda v_bar, v_bar the believers' mean "
         "predicted velocity, in [0, 10]; 0: x_bar, the paper",
     )
+    team_objective: Literal["sum", "min"] = Field(
+        "sum",
+        description="several targets (ours): the team maximises the `sum` over targets of Xi_k (Eq. 12 per target) or "
+        "its `min` (no target left alone); one target: Eq. (12) either way",
+    )
     horizon: Integer(1, 100) = Field(
         1,
         description="H, intercept horizon [steps] (ours): aim where the target, coasted by Eq. (1), can first be "

@@ -231,6 +231,7 @@ class SwarmComponents:
     targets: list[TargetParams]
     ids: list[int | str]
     lmb: LMBParams
+    team_objective: str = "sum"  # control.team_objective: "sum" | "min" of the targets' Xi_k
 
 
 def lmb_params(s: Scenario) -> LMBParams:
@@ -258,7 +259,8 @@ def build_swarm(s: Scenario) -> SwarmComponents:
             raise ConfigError(
                 f"{key}: {value!r} is not simulated with several targets yet; the swarm engine runs with {runs!r}"
             )
-    return SwarmComponents(base=build(s), targets=targets_params(s), ids=target_ids(s), lmb=lmb_params(s))
+    return SwarmComponents(base=build(s), targets=targets_params(s), ids=target_ids(s), lmb=lmb_params(s),
+                           team_objective=s.control.team_objective)
 
 
 def figure_settings(s: Scenario) -> FigureSettings:

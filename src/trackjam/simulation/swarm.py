@@ -276,7 +276,7 @@ class SwarmSimulation:
         p = b.plan
         x_bar = np.clip(np.array([f.estimate.mean[:3] for f in aims]), b.low, b.high)
         problem = build_assignment(positions, x_bar, b.displacements, b.antenna, b.low, b.high,
-                                   min(p.at_least, n), p.constraints, "sum")
+                                   min(p.at_least, n), p.constraints, self.c.team_objective)
         options = SolverOptions(samples=p.samples, iterations=p.iterations, neighbours=p.neighbours,
                                 threads=p.threads, time_limit_s=p.time_limit_s)
         sol = solve_assignment(problem, p.solver, [a.plan_rng for a in self.agents], options)
