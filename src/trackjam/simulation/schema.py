@@ -24,6 +24,31 @@ def _xyz(prefix: str, unit: str, description: str) -> tuple[Column, ...]:
     return tuple(Column(f"{prefix}_{k}", "float64", unit, f"{description} ({k})") for k in "xyz")
 
 
+# column blocks every run's logs share, one target or several (simulation/swarm_schema.py)
+AGENT_MOVE: tuple[Column, ...] = (
+    Column("t", "int64", "step", "step"),
+    Column("agent", "int64", "", "agent index, 0-based"),
+    *_xyz("prev", "m", "position u_{t-1} before the step's move"),
+    Column("x", "float64", "m", "position u_t after the move (x)"),
+    Column("y", "float64", "m", "position u_t after the move (y)"),
+    Column("z", "float64", "m", "position u_t after the move (z)"),
+    Column("level_index", "int64", "", "index into antenna.power_levels_db (0 = off)"),
+    Column("power_w", "float64", "W", "transmit power l_t"),
+    *_xyz("point", "m", "the point the antenna axis aimed at while transmitting"),
+)
+AGENT_INTERFERENCE: tuple[Column, ...] = (
+    Column("interference_w", "float64", "W", "power received from the other agents' cones, Eq. (13)'s left side"),
+    Column("jammed", "bool", "", "interference_w >= delta"),
+)
+SCAN_ROW: tuple[Column, ...] = (
+    Column("t", "int64", "step", "step"),
+    Column("agent", "int64", "", "agent that received it"),
+    Column("rho", "float64", "m", "range"),
+    Column("azimuth", "float64", "rad", "azimuth in (-pi, pi]"),
+    Column("inclination", "float64", "rad", "inclination"),
+)
+
+
 STEPS: tuple[Column, ...] = (
     Column("t", "int64", "step", "step, 1..steps"),
     Column("target_exists", "bool", "", "the truth target is present"),
@@ -45,32 +70,19 @@ STEPS: tuple[Column, ...] = (
 )
 
 AGENTS: tuple[Column, ...] = (
-    Column("t", "int64", "step", "step"),
-    Column("agent", "int64", "", "agent index, 0-based"),
-    *_xyz("prev", "m", "position u_{t-1} before the step's move"),
-    Column("x", "float64", "m", "position u_t after the move (x)"),
-    Column("y", "float64", "m", "position u_t after the move (y)"),
-    Column("z", "float64", "m", "position u_t after the move (z)"),
-    Column("level_index", "int64", "", "index into antenna.power_levels_db (0 = off)"),
-    Column("power_w", "float64", "W", "transmit power l_t"),
-    *_xyz("point", "m", "the point the antenna axis aimed at while transmitting"),
+    *AGENT_MOVE,
     Column("p_d", "float64", "", "detection probability at the true target, Eq. (9)"),
     Column("detected", "bool", "", "the scan held a target measurement"),
     Column("measurements", "int64", "", "measurements in the scan (target and clutter)"),
     Column("existence", "float64", "", "the agent's own existence e^j_t before fusion; NaN when broken down"),
-    Column("interference_w", "float64", "W", "power received from the other agents' cones, Eq. (13)'s left side"),
-    Column("jammed", "bool", "", "interference_w >= delta"),
+    *AGENT_INTERFERENCE,
     Column("to_target_w", "float64", "W", "power this agent delivers at the target, Eq. (10)"),
     Column("mode", "str", "", "track, search, hover, external or down: the plan this agent followed"),
     Column("heard", "int64", "", "agents whose predictions of this step it planned with, itself included"),
 )
 
 MEASUREMENTS: tuple[Column, ...] = (
-    Column("t", "int64", "step", "step"),
-    Column("agent", "int64", "", "agent that received it"),
-    Column("rho", "float64", "m", "range"),
-    Column("azimuth", "float64", "rad", "azimuth in (-pi, pi]"),
-    Column("inclination", "float64", "rad", "inclination"),
+    *SCAN_ROW,
     Column("from_target", "bool", "", "a target measurement (False: clutter)"),
 )
 

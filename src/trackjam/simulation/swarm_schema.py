@@ -5,7 +5,7 @@ targets" are tested against these declarations."""
 
 from __future__ import annotations
 
-from trackjam.simulation.schema import Column, _xyz
+from trackjam.simulation.schema import AGENT_INTERFERENCE, AGENT_MOVE, SCAN_ROW, Column, _xyz
 
 SWARM_STEPS: tuple[Column, ...] = (
     Column("t", "int64", "step", "step, 1..steps"),
@@ -46,31 +46,18 @@ SWARM_TRACKS: tuple[Column, ...] = (
 )
 
 SWARM_AGENTS: tuple[Column, ...] = (
-    Column("t", "int64", "step", "step"),
-    Column("agent", "int64", "", "agent index, 0-based"),
-    *_xyz("prev", "m", "position u_{t-1} before the step's move"),
-    Column("x", "float64", "m", "position u_t after the move (x)"),
-    Column("y", "float64", "m", "position u_t after the move (y)"),
-    Column("z", "float64", "m", "position u_t after the move (z)"),
-    Column("level_index", "int64", "", "index into antenna.power_levels_db (0 = off)"),
-    Column("power_w", "float64", "W", "transmit power l_t"),
-    *_xyz("point", "m", "the point the antenna axis aimed at while transmitting"),
+    *AGENT_MOVE,
     Column("serves", "str", "", "label of the track its cone serves; empty while hovering"),
     Column("detections", "int64", "", "target measurements in its scan"),
     Column("measurements", "int64", "", "measurements in its scan (targets and clutter)"),
     Column("tracks", "int64", "", "its own tracks with existence > 0.5, before fusion"),
-    Column("interference_w", "float64", "W", "power received from the other agents' cones, Eq. (13)'s left side"),
-    Column("jammed", "bool", "", "interference_w >= delta"),
+    *AGENT_INTERFERENCE,
     Column("to_targets_w", "float64", "W", "power it delivers at the targets, summed over them, Eq. (10)"),
     Column("mode", "str", "", "track or hover: the plan it followed"),
 )
 
 SWARM_MEASUREMENTS: tuple[Column, ...] = (
-    Column("t", "int64", "step", "step"),
-    Column("agent", "int64", "", "agent that received it"),
-    Column("rho", "float64", "m", "range"),
-    Column("azimuth", "float64", "rad", "azimuth in (-pi, pi]"),
-    Column("inclination", "float64", "rad", "inclination"),
+    *SCAN_ROW,
     Column("target", "str", "", "id of the target that made it; empty: clutter"),
 )
 
