@@ -10,6 +10,12 @@ from trackjam.radio.measurement import clutter_bounds, h
 from trackjam.simulation.build import build, load_scenario
 
 
+
+def timing_ms(times: np.ndarray) -> dict:
+    """Median, 95th percentile, min and max of per-step wall times [ms]."""
+    return {"median_ms": float(np.median(times)), "p95_ms": float(np.percentile(times, 95)),
+            "min_ms": float(times.min()), "max_ms": float(times.max())}
+
 def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000, birth_particles: int = 2_000) -> dict:
     """Median and 95th percentile wall time [ms] of ``predict()`` + ``update()`` with 4 measurements
     (1 from a hovering target 5.2 m ahead of the agent, 3 clutter points drawn afresh each step), after a warm-up step so that numba's
@@ -42,10 +48,7 @@ def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000,
         est = f.update(Z, u, x[:3], level_w)
         times[r] = (time.perf_counter() - t0) * 1e3
     return {
-        "median_ms": float(np.median(times)),
-        "p95_ms": float(np.percentile(times, 95)),
-        "min_ms": float(times.min()),
-        "max_ms": float(times.max()),
+        **timing_ms(times),
         "repeats": repeats,
         "seed": seed,
         "particles": particles,

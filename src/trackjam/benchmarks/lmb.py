@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 
+from trackjam.benchmarks.filter import timing_ms
 from trackjam.estimation.lmb import LMBFilter, LMBParams
 from trackjam.radio.antenna import axis_of, detection_probability
 from trackjam.radio.measurement import sample_scan_multi
@@ -62,10 +63,7 @@ def bench_lmb_step(repeats: int = 50, seed: int = 0, association: str = "gibbs")
     confirmed = [e for e in f.estimates() if e.existence > 0.5]
     errors = [np.min(np.linalg.norm(X - e.mean[:3], axis=1)) for e in confirmed]
     return {
-        "median_ms": float(np.median(times)),
-        "p95_ms": float(np.percentile(times, 95)),
-        "min_ms": float(times.min()),
-        "max_ms": float(times.max()),
+        **timing_ms(times),
         "repeats": repeats,
         "seed": seed,
         "association": association,
