@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from trackjam.config import Scenario, load_scenario, preset_names, scenario_to_yaml, validate_scenario
 from trackjam.errors import ConfigError
 from trackjam.simulation.build import target_ids, target_params, targets_params
+from config_paths import value_paths
 
 TWO = "targets=[{initial: [10, 10, 10, 1, 0, 0]}, {id: b, appears: 4, initial: null, occlusions: [[6, 8]]}]"
 
@@ -141,19 +142,8 @@ def test_each_listed_target_warns_under_its_own_key():
     assert one == ["target.appears: step 31 comes after the last step (30); the target never appears"]
 
 
-def _paths(node, prefix=()):
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield prefix + (k,)
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield prefix + (i,)
-            yield from _paths(v, prefix + (i,))
-
-
 LISTED = yaml.safe_load(scenario_to_yaml(_two()))
-TARGET_PATHS = sorted({p for p in _paths(LISTED) if p[0] == "targets"}, key=str)
+TARGET_PATHS = sorted({p for p in value_paths(LISTED) if p[0] == "targets"}, key=str)
 ODD = [1e300, -1, 0, 0.5, float("nan"), float("inf"), 10**30, True, None, "", "abc", [], [1, 2], {}, {"x": 1}, 3, "b", 0]
 
 

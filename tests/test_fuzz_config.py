@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from trackjam.config import load_scenario, scenario_to_dict, validate_scenario
 from trackjam.errors import ConfigError
+from config_paths import value_paths
 
 SMALL = ["steps=3", "filter.particles=200", "filter.birth_particles=50", "control.grasp.samples=50", "control.grasp.iterations=2"]
 BASE = scenario_to_dict(load_scenario("paper-fig3", SMALL))
@@ -29,19 +30,7 @@ ODD_VALUES = [
 ]
 
 
-def _paths(node, prefix=()):
-    """Every place a value can be replaced: keys of mappings (sections too) and list elements."""
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield prefix + (k,)
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield prefix + (i,)
-            yield from _paths(v, prefix + (i,))
-
-
-PATHS = sorted(set(_paths(BASE)), key=str)
+PATHS = sorted(set(value_paths(BASE)), key=str)
 
 
 def _copy(node):
