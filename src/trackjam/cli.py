@@ -274,7 +274,7 @@ def _quality_rows(m: dict) -> list[tuple[str, str]]:
 @app.command()
 @user_errors
 def experiment(
-    name: str = typer.Argument(..., help="table1 | constraints | solvers | holding | comms"),
+    name: str = typer.Argument(..., help="table1 | constraints | solvers | holding | comms | swarm"),
     trials: int = typer.Option(20, "--trials", help="Trials per configuration (the paper: 20)."),
     steps: int = typer.Option(30, "--steps", help="Steps per trial (the paper: 30)."),
     seed: int = typer.Option(0, "--seed", help="Experiment seed; each trial's seed derives from it."),
@@ -282,6 +282,7 @@ def experiment(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, tcp://HOST:PORT."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+    grid: Optional[str] = typer.Option(None, "--grid", help="swarm only: TARGETSxAGENTS, e.g. 1-4x3-6 (the default)."),
 ) -> None:
     """Run one of the paper's Monte Carlo experiments (resumable; local pool or Dask)."""
     from trackjam.experiments.cli import experiment_command
@@ -295,6 +296,7 @@ def experiment(
         scheduler=scheduler,
         out=out or Path("runs") / f"experiment-{name}",
         overrides=set_ or [],
+        grid=grid,
     )
 
 

@@ -9,7 +9,7 @@ from trackjam.experiments.definitions import get_experiment
 
 OPTIONS = {
     "NAME": "table1 (Table I / Fig. 4), constraints (Fig. 5), or ours: solvers (GRASP vs exact), "
-            "holding (track quality on Fig. 3), comms (message faults)",
+            "holding (track quality on Fig. 3), comms (message faults), swarm (K targets x N agents)",
     "--trials": "trials per configuration, the same draws for every configuration (paper: 20)",
     "--steps": "steps of dT = 1 s per trial (paper: 30)",
     "--seed": "experiment seed; trial k's draw and each (configuration, trial) seed derive from it",
@@ -17,6 +17,7 @@ OPTIONS = {
     "--scheduler": "address tcp://HOST:PORT of a running Dask scheduler; trials run on its workers",
     "--out": "output folder (default runs/experiment-NAME); rerun with the same options to resume",
     "--set": "key=value scenario override applied to every configuration (repeatable)",
+    "--grid": "swarm only: its cells, TARGETSxAGENTS, each side numbers or ranges (default 1-4x3-6)",
 }
 
 
@@ -29,6 +30,7 @@ def experiment_command(
     scheduler: str | None = None,
     out: Path | None = None,
     overrides: list[str] | None = None,
+    grid: str | None = None,
 ) -> None:
     """Run or resume the experiment with a progress display, then print its summary table."""
     from rich.console import Console
@@ -36,13 +38,13 @@ def experiment_command(
 
     result = run_experiment(
         name, trials=trials, steps=steps, seed=seed, workers=workers, scheduler=scheduler,
-        out=out if out is not None else Path("runs") / f"experiment-{name}", overrides=overrides,
+        out=out if out is not None else Path("runs") / f"experiment-{name}", overrides=overrides, grid=grid,
     )
     table = Table(title=f"{name}: mean ± 95% CI over trials ({result.out / 'summary.csv'})")
     table.add_column("#", justify="right")
     table.add_column("configuration")
     table.add_column("trials", justify="right")
-    experiment = get_experiment(name)
+    experiment = get_experiment(name, grid)
     for stem, _, _ in experiment.metrics + experiment.counts:
         table.add_column(stem, justify="right")
     table.add_column("step [s]", justify="right")

@@ -17,12 +17,18 @@ trial to trial while every configuration of trial k sees the same truth:
 - ``holding``: how well the team holds the target, judged by the truth, for the paper's
   behaviour and each pursuit option (:data:`HOLDING_VARIANTS`), beside the clairvoyant ceiling;
 - ``comms``: the distributed team (``pointing: aim``) under lost and late messages and failures.
+
+Ours, on several targets (the ``swarm-3`` preset's settings, the targets' jamming response on):
+
+- ``swarm``: K targets x N agents (default K = 1..4, N = 3..6), one configuration per cell,
+  trial k drawn per cell by :mod:`trackjam.experiments.swarm`, plus the K = 1 cells on the
+  one-target engine.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from trackjam.config import (
     Scenario,
@@ -35,7 +41,9 @@ from trackjam.config import (
     validate_scenario,
 )
 from trackjam.errors import ConfigError
+from trackjam.experiments.progress import PAPER_SHOWN, SWARM_SHOWN, Shown
 from trackjam.experiments.summary import COUNTS, METRICS, QUALITY, Count, Metric
+from trackjam.experiments.swarm import SWARM_METRICS, draw_swarm, grid_text, parse_grid, swarm_fields, swarm_trial
 from trackjam.experiments.trials import TrialDraw, draw_trial, simulation_seed, trial_fields
 from trackjam.simulation.build import displacements as scenario_displacements
 
@@ -44,9 +52,10 @@ BASE_PRESET = "paper-fig3"
 CONTROLS_11 = {"agents.radial_steps": [3.0], "agents.n_inclination": 4, "agents.n_azimuth": 8}
 CONTROLS_79 = {"agents.radial_steps": [1.0, 3.0, 5.0], "agents.n_inclination": 8, "agents.n_azimuth": 8}
 
-# How an experiment's trials differ: the paper's trial draw of Section VI, or Fig. 3 itself with
-# the seed of trial k (configuration-independent, so every configuration sees the same truth).
-DRAW, SEED = "draw", "seed"
+# How an experiment's trials differ: the paper's trial draw of Section VI, Fig. 3 itself with
+# the seed of trial k (configuration-independent, so every configuration sees the same truth), or
+# the swarm draw of each (K, N) cell (experiments/swarm.py).
+DRAW, SEED, SWARM = "draw", "seed", "swarm"
 
 
 @dataclass(frozen=True)
@@ -56,6 +65,15 @@ class Configuration:
     index: int
     label: str
     settings: dict[str, Any] = field(default_factory=dict)  # dotted scenario keys
+    cell: tuple[int, int] | None = None  # a swarm cell: (targets K, agents N)
+    one_target: bool = False  # a K = 1 swarm cell run on the one-target engine
+
+    @property
+    def columns(self) -> dict[str, Any]:
+        """What summary.csv says of a swarm cell beside the common columns."""
+        if self.cell is None:
+            return {}
+        return {"targets": self.cell[0], "agents": self.cell[1], "engine": "one-target" if self.one_target else "swarm"}
 
 
 @dataclass(frozen=True)
@@ -117,6 +135,11 @@ class Experiment:
     counts: tuple[Count, ...] = ()
     trials: str = DRAW
     base_settings: dict[str, Any] = field(default_factory=dict)
+    preset: str = BASE_PRESET  # the base scenario
+    trial: Callable[[Scenario], dict] | None = None  # its trial function; None: the engine's simulate_trial
+    figure_style: str = "bars"  # "bars" per configuration, or "lines": against K, one line per N
+    shown: Shown = PAPER_SHOWN  # the running means of the progress display
+    grid: str | None = None  # a swarm experiment's grid, KxN (experiments/swarm.py)
 
     def __post_init__(self) -> None:
         stems = {m[0] for m in self.metrics + self.counts}
@@ -243,6 +266,42 @@ EXPERIMENTS: dict[str, Experiment] = {
     ),
 }
 
+# ours, several targets: each metric against K, one line per N (experiments/swarm_figure.py)
+SWARM_PANELS = (
+    Panel("(a) held share per target", "share of detectable steps", (("held", None),)),
+    Panel("(b) held share while airborne (until downed)", "share of detectable steps", (("held_airborne", None),)),
+    Panel("(c) targets held on >= 50 % of their steps", "share of targets", (("held50", None),)),
+    Panel("(d) multi-target tracking error", "OSPA (p=2, c=10) [m]", (("ospa", None),)),
+    Panel("(e) targets downed", "share of targets", (("downed", None),)),
+    Panel("(f) time to down a target", "step of the fail-safe", (("time_to_down", None),)),
+)
+
+
+def swarm_experiment(grid: str | None = None) -> Experiment:
+    """``swarm`` over the grid ``grid`` (TARGETSxAGENTS, default 1-4x3-6): a configuration per
+    cell (K, N), K-major, then the K = 1 cells again on the one-target engine."""
+    targets, agents = parse_grid(grid)
+    cells = [Configuration(0, f"K={k}, N={n}", cell=(k, n)) for k in targets for n in agents]
+    cells += [Configuration(0, f"K=1, N={n}, one-target engine", cell=(1, n), one_target=True)
+              for n in agents if 1 in targets]
+    return Experiment(
+        "swarm",
+        "ours: K targets x N agents on the swarm engine, jamming response on",
+        tuple(Configuration(i, c.label, cell=c.cell, one_target=c.one_target) for i, c in enumerate(cells, start=1)),
+        "swarm.png",
+        panels=SWARM_PANELS,
+        metrics=SWARM_METRICS,
+        trials=SWARM,
+        preset="swarm-3",
+        trial=swarm_trial,
+        figure_style="lines",
+        shown=SWARM_SHOWN,
+        grid=grid_text((targets, agents)),
+    )
+
+
+EXPERIMENTS["swarm"] = swarm_experiment()
+
 # Keys a trial sets itself: a --set of these (or of a section holding them) is refused.
 _SEED_TRIAL_KEYS = ("steps", "seed")
 _DRAW_TRIAL_KEYS = (
@@ -255,13 +314,20 @@ _DRAW_TRIAL_KEYS = (
     "agents.initial",
     "agents.initial_aim",
 )
+_SWARM_TRIAL_KEYS = (*_SEED_TRIAL_KEYS, "target", "targets", "agents.initial", "agents.initial_aim")
 
 
-def get_experiment(name: str) -> Experiment:
+def get_experiment(name: str, grid: str | None = None) -> Experiment:
+    """Experiment ``name``; ``grid`` (TARGETSxAGENTS) only for ``swarm``."""
     try:
-        return EXPERIMENTS[name]
+        experiment = EXPERIMENTS[name]
     except KeyError:
         raise ConfigError(f"unknown experiment {name!r}; choose one of: {', '.join(EXPERIMENTS)}") from None
+    if grid is None:
+        return experiment
+    if experiment.trials != SWARM:
+        raise ConfigError(f"--grid: experiment {name} has no grid (only swarm has)")
+    return swarm_experiment(grid)
 
 
 def _overlaps(a: str, b: str) -> bool:
@@ -270,7 +336,7 @@ def _overlaps(a: str, b: str) -> bool:
 
 def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
     """Refuse ``--set`` keys that the trials or the experiment's sweep set themselves."""
-    owned_keys = _DRAW_TRIAL_KEYS if experiment.trials == DRAW else _SEED_TRIAL_KEYS
+    owned_keys = {DRAW: _DRAW_TRIAL_KEYS, SEED: _SEED_TRIAL_KEYS, SWARM: _SWARM_TRIAL_KEYS}[experiment.trials]
     for item in overrides:
         key = item.partition("=")[0].strip()
         for owned in owned_keys:
@@ -283,11 +349,11 @@ def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
 
 
 def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = None) -> dict:
-    """The paper's settings (without Fig. 3's occlusions for the paper's trial draw), the
-    experiment's own settings, ``steps`` steps, and the user's overrides."""
+    """The experiment's preset (the paper's settings, without Fig. 3's occlusions for the paper's
+    trial draw), its own settings, ``steps`` steps, and the user's overrides."""
     overrides = list(overrides or [])
     check_overrides(experiment, overrides)
-    data, _ = load_scenario_data(BASE_PRESET)
+    data, _ = load_scenario_data(experiment.preset)
     data["steps"] = steps
     if experiment.trials == DRAW:
         data.setdefault("target", {})["occlusions"] = []
@@ -313,10 +379,30 @@ def trial_scenario(
     return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}")
 
 
+def base_scenario(base: dict, preset: str = BASE_PRESET) -> Scenario:
+    """The base scenario validated (so a bad --set fails here, before any trial)."""
+    return validate_scenario(base, f"base scenario of the experiment (preset {preset} with --set)")
+
+
 def draw_for(base: dict, seed: int, k: int) -> TrialDraw:
     """Trial k's draw in the base scenario's area (validated first, so a bad --set fails here)."""
-    s = validate_scenario(base, f"base scenario of the experiment (preset {BASE_PRESET} with --set)")
+    s = base_scenario(base)
     return draw_trial(seed, k, s.area.low, s.area.high, s.n_agents, s.filter.birth_speed)
+
+
+def swarm_scenario(experiment: Experiment, space: Scenario, base: dict, configuration: Configuration, k: int,
+                   seed: int) -> Scenario:
+    """Trial k of a swarm cell: ``space`` (the validated base) gives the area and v_b of the draw;
+    the seed is trial k's in every cell, so the truth's and agents' streams are shared."""
+    n_targets, n_agents = configuration.cell
+    draw = draw_swarm(seed, k, n_targets, n_agents, space.area.low, space.area.high, space.filter.birth_speed)
+    data = apply_overrides(base, [])
+    for key, value in swarm_fields(draw, configuration.one_target).items():
+        set_dotted(data, key, value)
+    data = {key: value for key, value in data.items() if value is not None or key not in ("target", "targets")}
+    data["seed"] = simulation_seed(seed, 0, k)
+    data["name"] = f"{experiment.name}-c{configuration.index}-t{k}"
+    return validate_scenario(data, f"experiment {experiment.name}, {configuration.label}")
 
 
 def configuration_columns(s: Scenario) -> dict[str, Any]:

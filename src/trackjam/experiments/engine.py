@@ -24,11 +24,14 @@ from trackjam.config import Scenario
 from trackjam.errors import ConfigError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor
 from trackjam.experiments.definitions import (
+    SWARM,
     Experiment,
     base_data,
+    base_scenario,
     configuration_columns,
     draw_for,
     get_experiment,
+    swarm_scenario,
     trial_scenario,
 )
 from trackjam.experiments.progress import make_reporter
@@ -85,9 +88,12 @@ class ExperimentResult:
     notes: list[str] = field(default_factory=list)  # what the resume found damaged or foreign
 
 
-def _parameters(name: str, trials: int, steps: int, seed: int, overrides: list[str], trial: TrialFunction) -> dict:
+def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
+                trial: TrialFunction) -> dict:
+    grid = {} if experiment.grid is None else {"grid": experiment.grid}
     return {
-        "experiment": name,
+        "experiment": experiment.name,
+        **grid,
         "trials": trials,
         "steps": steps,
         "seed": seed,
@@ -192,14 +198,19 @@ def _names(names: list[str], shown: int = 3) -> str:
 def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str]):
     """Every (config, trial) scenario, built and so validated, and the configuration columns."""
     base = base_data(experiment, steps, overrides)
-    draws = [draw_for(base, seed, k) for k in range(trials)]
-    scenarios = {
-        (c.index, d.index): trial_scenario(experiment, base, c, d, seed)
-        for c in experiment.configurations
-        for d in draws
-    }
+    if experiment.trials == SWARM:
+        space = base_scenario(base, experiment.preset)
+        scenarios = {(c.index, k): swarm_scenario(experiment, space, base, c, k, seed)
+                     for c in experiment.configurations for k in range(trials)}
+    else:
+        draws = [draw_for(base, seed, k) for k in range(trials)]
+        scenarios = {
+            (c.index, d.index): trial_scenario(experiment, base, c, d, seed)
+            for c in experiment.configurations
+            for d in draws
+        }
     configurations = [
-        {"config": c.index, "label": c.label, **configuration_columns(scenarios[(c.index, 0)])}
+        {"config": c.index, "label": c.label, **configuration_columns(scenarios[(c.index, 0)]), **c.columns}
         for c in experiment.configurations
     ]
     return scenarios, configurations
@@ -215,7 +226,8 @@ def run_experiment(
     out: Path | str | None = None,
     overrides: list[str] | None = None,
     progress: str | Callable[[dict, int, int], None] = "auto",
-    trial: TrialFunction = simulate_trial,
+    trial: TrialFunction | None = None,
+    grid: str | None = None,
 ) -> ExperimentResult:
     """Run (or resume) experiment ``name``: every configuration on the same ``trials`` trial
     draws of ``steps`` steps, then write summary.csv, timing.csv and the figure into ``out``
@@ -223,9 +235,11 @@ def run_experiment(
 
     ``progress``: "auto" (a rich bar on a terminal, else one line per trial), "bar", "lines",
     "none", or a callable ``(record, done, total)``. ``trial`` maps a scenario to a record
-    (default: :func:`simulate_trial`); it must be importable by the workers.
+    (default: the experiment's, else :func:`simulate_trial`); it must be importable by the
+    workers. ``grid``: the swarm experiment's cells, TARGETSxAGENTS (default 1-4x3-6).
     """
-    experiment = get_experiment(name)
+    experiment = get_experiment(name, grid)
+    trial = trial or experiment.trial or simulate_trial
     if not isinstance(trials, int) or trials < 1:
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
     if not isinstance(steps, int) or steps < 1:
@@ -241,7 +255,7 @@ def run_experiment(
 
     scenarios, configurations = _plan(experiment, trials, steps, seed, overrides)
     report = make_reporter(progress, experiment, configurations, total=len(scenarios))
-    params = _parameters(name, trials, steps, seed, overrides, trial)
+    params = _parameters(experiment, trials, steps, seed, overrides, trial)
     _check_out(out, params)
 
     with open_executor(workers, scheduler) as (executor, window):
@@ -299,7 +313,7 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     if not meta.exists():
         raise ConfigError(f"{out}: no experiment.json here")
     params = read_parameters(meta)
-    experiment = get_experiment(params["experiment"])
+    experiment = get_experiment(params["experiment"], params.get("grid"))
     scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
     found, notes = _read_back(out / "trials", experiment, {key: s.seed for key, s in scenarios.items()})
     return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)

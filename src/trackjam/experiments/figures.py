@@ -93,5 +93,10 @@ def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
 
 
 def write_figure(experiment, rows: list[dict[str, Any]], path: Path) -> Path:
-    experiment_figure(experiment, rows).savefig(path, dpi=120)
+    if experiment.figure_style == "lines":
+        from trackjam.experiments.swarm_figure import swarm_figure
+
+        swarm_figure(experiment, rows).savefig(path, dpi=120)
+    else:
+        experiment_figure(experiment, rows).savefig(path, dpi=120)
     return path

@@ -3,18 +3,23 @@ finished trial otherwise (logs, CI, pipes)."""
 
 from __future__ import annotations
 
+import math
 import sys
 from typing import Any, Callable, Mapping
 
 from trackjam.errors import ConfigError
 
-_SHOWN = (("incidents", "jamming_incidents_per_agent", "{:.2f}"), ("OSPA", "ospa_mean", "{:.2f} m"),
-          ("P_target", "target_received_w_mean", "{:.3g} W"))
+Shown = tuple[tuple[str, str, str], ...]  # (label, key of a trial record, format) of each running mean
+PAPER_SHOWN: Shown = (("incidents", "jamming_incidents_per_agent", "{:.2f}"), ("OSPA", "ospa_mean", "{:.2f} m"),
+                      ("P_target", "target_received_w_mean", "{:.3g} W"))
+SWARM_SHOWN: Shown = (("held", "held_share", "{:.0%}"), ("downed", "downed_share", "{:.0%}"),
+                      ("OSPA", "ospa_mean", "{:.2f} m"), ("incidents", "jamming_incidents_per_agent", "{:.2f}"))
 
 
 class _Reporter:
     def __init__(self, experiment, configurations: list[dict], total: int) -> None:
         self.name = experiment.name
+        self.shown = experiment.shown
         self.labels = {c["config"]: c["label"] for c in configurations}
         self.total = total
         self.records: list[Mapping[str, Any]] = []
@@ -24,8 +29,9 @@ class _Reporter:
         if not n:
             return ""
         parts = []
-        for label, key, fmt in _SHOWN:
-            parts.append(f"{label} {fmt.format(sum(float(r[key]) for r in self.records) / n)}")
+        for label, key, fmt in self.shown:
+            values = [float(r[key]) for r in self.records if not math.isnan(float(r[key]))]
+            parts.append(f"{label} {fmt.format(sum(values) / len(values)) if values else '-'}")
         return "running means: " + ", ".join(parts)
 
     def note(self, line: str) -> None:

@@ -45,6 +45,9 @@ TIMING: tuple[Metric, ...] = (
     ("solve_s", "solve_s_mean", "wall time of the control solver per step [s]"),
 )
 CONFIG_COLUMNS = ("config", "label", "n_controls", "opening_angle_deg", "constraints", "solver")
+# figures a trial may lack (the swarm's time to down, when no target was downed): their mean and
+# interval are over the trials that have them
+WHERE_DEFINED = frozenset({"downed_step_mean"})
 RECORD_KEYS = tuple(k for _, k, _ in METRICS + TIMING)
 
 
@@ -58,8 +61,9 @@ def trial_filename(config: int, trial: int) -> str:
 
 def record_table(record: Mapping[str, Any]) -> pa.Table:
     """One trial as a one-row table: every number of the record as a float column (those of
-    :data:`RECORD_KEYS` first, in order), per-agent incidents as a list, and each 1-D numeric
-    per-step series ``name`` of the run as a list column ``step.name``."""
+    :data:`RECORD_KEYS` first, in order), per-agent incidents as a list, each 1-D numeric
+    per-step series ``name`` of the run as a list column ``step.name``, and each per-target list
+    ``name`` of a run with several targets (``targets``) as ``target.name``."""
     columns: dict[str, pa.Array] = {
         "experiment": pa.array([str(record["experiment"])]),
         "config": pa.array([int(record["config"])], pa.int64()),
@@ -74,6 +78,8 @@ def record_table(record: Mapping[str, Any]) -> pa.Table:
         a = np.asarray(values)
         if a.ndim == 1 and a.dtype.kind in "biuf":
             columns[f"step.{name}"] = pa.array([a.astype(float).tolist()], pa.list_(pa.float64()))
+    for name, values in sorted((record.get("targets") or {}).items()):
+        columns[f"target.{name}"] = pa.array([[float(v) for v in values]], pa.list_(pa.float64()))
     return pa.table(columns)
 
 
@@ -163,16 +169,22 @@ def table_rows(
     metrics: tuple[Metric, ...],
     counts: tuple[Count, ...] = (),
 ) -> list[dict[str, Any]]:
-    """One row per configuration (in order): its parameters, trials, mean/ci95 of each metric
-    over its trials (records are taken in trial order, whatever order they finished), and for
-    each count ``STEM`` (k), ``STEM_of`` (n), ``STEM_lo`` and ``STEM_hi`` (:func:`count_ci95`)."""
+    """One row per configuration (in order): its parameters (:data:`CONFIG_COLUMNS`, then any
+    other key of the configuration), trials, mean/ci95 of each metric over its trials (records
+    are taken in trial order, whatever order they finished; a metric of :data:`WHERE_DEFINED`
+    over the trials that have it), and for each count ``STEM`` (k), ``STEM_of`` (n),
+    ``STEM_lo`` and ``STEM_hi`` (:func:`count_ci95`)."""
     rows = []
     for conf in configurations:
         mine = sorted((r for r in records if int(r["config"]) == conf["config"]), key=lambda r: int(r["trial"]))
         row = {k: conf[k] for k in CONFIG_COLUMNS}
+        row |= {k: v for k, v in conf.items() if k not in row}
         row["trials"] = len(mine)
         for stem, key, _ in metrics:
-            row[f"{stem}_mean"], row[f"{stem}_ci95"] = mean_ci95(r[key] for r in mine)
+            values = [r[key] for r in mine]
+            if key in WHERE_DEFINED:
+                values = [v for v in values if v is not None and not math.isnan(v)]
+            row[f"{stem}_mean"], row[f"{stem}_ci95"] = mean_ci95(values)
         for stem, key, _ in counts:
             row[stem], row[f"{stem}_of"], row[f"{stem}_lo"], row[f"{stem}_hi"] = count_ci95(r[key] for r in mine)
         rows.append(row)
