@@ -226,3 +226,28 @@ def test_the_time_to_down_is_averaged_over_the_trials_that_downed_a_target():
     assert row["time_to_down_mean"] == 4.0 and row["time_to_down_ci95"] > 0  # over 3 and 5
     assert row["downed_mean"] == pytest.approx(0.5)  # the share counts every trial
     assert list(row)[:10] == [*conf[0], "trials"]  # the cell's columns follow the common ones
+
+
+def test_the_pairs_compare_neighbours_extremes_and_the_two_engines():
+    e = get_experiment("swarm")
+    index = {(c.cell, c.one_target): c.index for c in e.configurations}
+    pairs = {label: (a, b) for a, b, label in e.pairs}
+    assert len(pairs) == 4 * 4 + 4 * 4 + 4
+    assert pairs["K=3: N=4 -> N=5"] == (index[((3, 4), False)], index[((3, 5), False)])
+    assert pairs["K=2: N=3 -> N=6"] == (index[((2, 3), False)], index[((2, 6), False)])
+    assert pairs["N=5: K=1 -> K=4"] == (index[((1, 5), False)], index[((4, 5), False)])
+    assert pairs["K=1, N=6: one-target engine -> swarm engine"] == (index[((1, 6), True)], index[((1, 6), False)])
+    # two values have no extremes beyond their one neighbour pair, one value no pair at all
+    assert [label for _, _, label in swarm_experiment("2x3,4").pairs] == ["K=2: N=3 -> N=4"]
+
+
+def test_a_paired_difference_is_over_the_trials_both_ran():
+    from trackjam.experiments.summary import mean_ci95, paired_rows
+
+    a = [1.0, 2.0, 4.0, math.nan]
+    b = [2.0, 2.5, 7.0, 1.0, 9.0]  # its trial 4 has no partner; trial 3 lacks a's value
+    records = [{"config": 1, "trial": k, "x": v} for k, v in enumerate(a)]
+    records += [{"config": 2, "trial": k, "x": v} for k, v in enumerate(b)]
+    row = paired_rows(records, [(1, 2, "one -> two")], (("x", "x", ""),))[0]
+    assert row["trials"] == 4 and row["label"] == "one -> two"
+    assert (row["x_diff"], row["x_ci95"]) == pytest.approx(mean_ci95([1.0, 0.5, 3.0]))

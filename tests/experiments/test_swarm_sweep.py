@@ -76,6 +76,18 @@ def test_each_row_is_the_mean_of_its_trials(swarm):
             assert len(r["jamming_incidents"]) == int(row["agents"])
 
 
+def test_the_paired_table_is_the_mean_difference_of_the_paired_trials(swarm):
+    out, _ = swarm
+    recs, rows = _records(out), read_table(out / "paired.csv")
+    assert [r["label"] for r in rows] == ["K=1: N=2 -> N=3", "K=2: N=2 -> N=3", "N=2: K=1 -> K=2", "N=3: K=1 -> K=2",
+                                          "K=1, N=2: one-target engine -> swarm engine",
+                                          "K=1, N=3: one-target engine -> swarm engine"]
+    for r in rows:
+        a, b = int(r["a"]), int(r["b"])
+        d = [recs[(b, k)]["ospa_mean"] - recs[(a, k)]["ospa_mean"] for k in range(2)]
+        assert float(r["ospa_diff"]) == pytest.approx(np.mean(d), rel=1e-5, abs=1e-9)
+
+
 def test_the_k1_cells_of_both_engines_start_from_the_same_trial(swarm):
     out, _ = swarm
     recs = _records(out)

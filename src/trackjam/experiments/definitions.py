@@ -27,8 +27,7 @@ Ours, on several targets (the ``swarm-3`` preset's settings, the targets' jammin
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from trackjam.config import (
     Scenario,
@@ -41,59 +40,25 @@ from trackjam.config import (
     validate_scenario,
 )
 from trackjam.errors import ConfigError
-from trackjam.experiments.progress import PAPER_SHOWN, SWARM_SHOWN, Shown
-from trackjam.experiments.summary import COUNTS, METRICS, QUALITY, Count, Metric
-from trackjam.experiments.swarm import SWARM_METRICS, draw_swarm, grid_text, parse_grid, swarm_fields, swarm_trial
+from trackjam.experiments.experiment import (  # noqa: F401  (the experiments' vocabulary, from here too)
+    BASE_PRESET,
+    DRAW,
+    FIG4_PANELS,
+    SEED,
+    SWARM,
+    Configuration,
+    Experiment,
+    Panel,
+)
+from trackjam.experiments.summary import COUNTS, METRICS, QUALITY, Metric
+from trackjam.experiments.swarm import draw_swarm, swarm_experiment, swarm_fields
 from trackjam.experiments.trials import TrialDraw, draw_trial, simulation_seed, trial_fields
 from trackjam.simulation.build import displacements as scenario_displacements
 
-BASE_PRESET = "paper-fig3"
 
 CONTROLS_11 = {"agents.radial_steps": [3.0], "agents.n_inclination": 4, "agents.n_azimuth": 8}
 CONTROLS_79 = {"agents.radial_steps": [1.0, 3.0, 5.0], "agents.n_inclination": 8, "agents.n_azimuth": 8}
 
-# How an experiment's trials differ: the paper's trial draw of Section VI, Fig. 3 itself with
-# the seed of trial k (configuration-independent, so every configuration sees the same truth), or
-# the swarm draw of each (K, N) cell (experiments/swarm.py).
-DRAW, SEED, SWARM = "draw", "seed", "swarm"
-
-
-@dataclass(frozen=True)
-class Configuration:
-    """One column of a comparison: ``index`` is 1-based (Table I's "Config. #")."""
-
-    index: int
-    label: str
-    settings: dict[str, Any] = field(default_factory=dict)  # dotted scenario keys
-    cell: tuple[int, int] | None = None  # a swarm cell: (targets K, agents N)
-    one_target: bool = False  # a K = 1 swarm cell run on the one-target engine
-
-    @property
-    def columns(self) -> dict[str, Any]:
-        """What summary.csv says of a swarm cell beside the common columns."""
-        if self.cell is None:
-            return {}
-        return {"targets": self.cell[0], "agents": self.cell[1], "engine": "one-target" if self.one_target else "swarm"}
-
-
-@dataclass(frozen=True)
-class Panel:
-    """One panel of an experiment's figure: a bar per configuration and series, with its 95 %
-    interval, clipped at ``floor`` (the metric's physical lower bound)."""
-
-    title: str
-    ylabel: str
-    series: tuple[tuple[str, str | None], ...]  # (metric or count stem, legend or None)
-    floor: float = 0.0
-    log: bool | None = None  # a log axis; None: when several series are all positive (powers)
-
-
-FIG4_PANELS = (
-    Panel("(a) jamming incidents", "incidents per trial per agent", (("incidents", None),)),
-    Panel("(b) received power", "W", (("target_received_w", "target"), ("agent_received_w", "agents"))),
-    Panel("(c) transmit power", "W per agent per step", (("transmit_w", None),)),
-    Panel("(d) tracking error", "OSPA [m]", (("ospa", None),)),
-)
 FIG5_PANELS = (
     Panel("(a) jamming incidents", "incidents per trial per agent", (("incidents", None),)),
     Panel("(b) agent received power", "W", (("agent_received_w", None),)),
@@ -116,40 +81,6 @@ HOLDING_METRICS: tuple[Metric, ...] = tuple(
 )
 
 
-@dataclass(frozen=True)
-class Experiment:
-    """A comparison of ``configurations`` on the same trials. It names what it summarises
-    (``metrics``: summary.csv's mean/ci95 columns, and ``counts``: its k-of-n columns, read from
-    each trial's record) and what its figure shows (``panels``, over those); the metrics default
-    to the paper's five and the track quality, the counts to none, the panels to Fig. 4's. Its ``trials`` are the
-    paper's draw (DRAW) or Fig. 3 with trial k's seed (SEED); ``base_settings`` are dotted keys
-    of its own on the base preset."""
-
-    name: str
-    description: str
-    configurations: tuple[Configuration, ...]
-    figure: str  # file name of its figure in OUT
-    panels: tuple[Panel, ...] = FIG4_PANELS
-    metrics: tuple[Metric, ...] = METRICS + QUALITY
-    xlabel: str = ""  # below the figure; ticks are the configurations' labels unless it is set
-    counts: tuple[Count, ...] = ()
-    trials: str = DRAW
-    base_settings: dict[str, Any] = field(default_factory=dict)
-    preset: str = BASE_PRESET  # the base scenario
-    trial: Callable[[Scenario], dict] | None = None  # its trial function; None: the engine's simulate_trial
-    figure_style: str = "bars"  # "bars" per configuration, or "lines": against K, one line per N
-    shown: Shown = PAPER_SHOWN  # the running means of the progress display
-    grid: str | None = None  # a swarm experiment's grid, KxN (experiments/swarm.py)
-
-    def __post_init__(self) -> None:
-        stems = {m[0] for m in self.metrics + self.counts}
-        unknown = [stem for p in self.panels for stem, _ in p.series if stem not in stems]
-        if unknown:
-            raise ValueError(f"experiment {self.name}: panels show {unknown}, which are not among its metrics")
-
-    @property
-    def swept_keys(self) -> set[str]:
-        return {k for c in self.configurations for k in c.settings}
 
 
 def _table1() -> Experiment:
@@ -265,40 +196,6 @@ EXPERIMENTS: dict[str, Experiment] = {
         base_settings={"control.solver": "exact", "antenna.pointing": "aim"},
     ),
 }
-
-# ours, several targets: each metric against K, one line per N (experiments/swarm_figure.py)
-SWARM_PANELS = (
-    Panel("(a) held share per target", "share of detectable steps", (("held", None),)),
-    Panel("(b) held share while airborne (until downed)", "share of detectable steps", (("held_airborne", None),)),
-    Panel("(c) targets held on >= 50 % of their steps", "share of targets", (("held50", None),)),
-    Panel("(d) multi-target tracking error", "OSPA (p=2, c=10) [m]", (("ospa", None),)),
-    Panel("(e) targets downed", "share of targets", (("downed", None),)),
-    Panel("(f) time to down a target", "step of the fail-safe", (("time_to_down", None),)),
-)
-
-
-def swarm_experiment(grid: str | None = None) -> Experiment:
-    """``swarm`` over the grid ``grid`` (TARGETSxAGENTS, default 1-4x3-6): a configuration per
-    cell (K, N), K-major, then the K = 1 cells again on the one-target engine."""
-    targets, agents = parse_grid(grid)
-    cells = [Configuration(0, f"K={k}, N={n}", cell=(k, n)) for k in targets for n in agents]
-    cells += [Configuration(0, f"K=1, N={n}, one-target engine", cell=(1, n), one_target=True)
-              for n in agents if 1 in targets]
-    return Experiment(
-        "swarm",
-        "ours: K targets x N agents on the swarm engine, jamming response on",
-        tuple(Configuration(i, c.label, cell=c.cell, one_target=c.one_target) for i, c in enumerate(cells, start=1)),
-        "swarm.png",
-        panels=SWARM_PANELS,
-        metrics=SWARM_METRICS,
-        trials=SWARM,
-        preset="swarm-3",
-        trial=swarm_trial,
-        figure_style="lines",
-        shown=SWARM_SHOWN,
-        grid=grid_text((targets, agents)),
-    )
-
 
 EXPERIMENTS["swarm"] = swarm_experiment()
 

@@ -38,6 +38,7 @@ from trackjam.experiments.progress import make_reporter
 from trackjam.experiments.summary import (
     TIMING,
     DamagedTrial,
+    paired_rows,
     parse_trial_filename,
     read_trial,
     table_rows,
@@ -200,8 +201,9 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
     base = base_data(experiment, steps, overrides)
     if experiment.trials == SWARM:
         space = base_scenario(base, experiment.preset)
+        # trial-major: a sweep stopped early leaves every cell with the same trials
         scenarios = {(c.index, k): swarm_scenario(experiment, space, base, c, k, seed)
-                     for c in experiment.configurations for k in range(trials)}
+                     for k in range(trials) for c in experiment.configurations}
     else:
         draws = [draw_for(base, seed, k) for k in range(trials)]
         scenarios = {
@@ -302,8 +304,12 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
     timing = table_rows(records, configurations, TIMING)
     write_table(out / "summary.csv", summary)
     write_table(out / "timing.csv", timing)
+    files = [out / "summary.csv", out / "timing.csv"]
+    if experiment.pairs:
+        write_table(out / "paired.csv", paired_rows(records, experiment.pairs, experiment.metrics))
+        files.append(out / "paired.csv")
     figure = atomic_write(out / experiment.figure, lambda tmp: write_figure(experiment, summary, tmp))
-    return ExperimentResult(out, summary, timing, ran, [out / "summary.csv", out / "timing.csv", figure], notes)
+    return ExperimentResult(out, summary, timing, ran, [*files, figure], notes)
 
 
 def summarise_folder(out: Path | str) -> ExperimentResult:

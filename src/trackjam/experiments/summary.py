@@ -191,6 +191,25 @@ def table_rows(
     return rows
 
 
+Pair = tuple[int, int, str]  # (configuration a, configuration b, what b - a compares)
+
+
+def paired_rows(records: list[Mapping[str, Any]], pairs: Iterable[Pair], metrics: tuple[Metric, ...]) -> list[dict[str, Any]]:
+    """One row per pair (a, b, label): ``trials`` both ran, and for each metric ``STEM_diff``, the
+    mean over those trials of b's value minus a's (trials where either lacks it left out), and
+    ``STEM_ci95``, the half-width of its t-based 95 % interval: a paired comparison."""
+    by = {(int(r["config"]), int(r["trial"])): r for r in records}
+    rows = []
+    for a, b, label in pairs:
+        trials = sorted(k for c, k in by if c == a and (b, k) in by)
+        row: dict[str, Any] = {"a": a, "b": b, "label": label, "trials": len(trials)}
+        for stem, key, _ in metrics:
+            d = [float(by[(b, k)][key]) - float(by[(a, k)][key]) for k in trials]
+            row[f"{stem}_diff"], row[f"{stem}_ci95"] = mean_ci95(v for v in d if not math.isnan(v))
+        rows.append(row)
+    return rows
+
+
 def write_table(path: Path, rows: list[dict[str, Any]]) -> None:
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="") as fh:

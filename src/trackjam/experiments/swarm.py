@@ -32,7 +32,9 @@ from typing import Any
 import numpy as np
 
 from trackjam.errors import ConfigError
-from trackjam.experiments.summary import Metric
+from trackjam.experiments.experiment import SWARM, Configuration, Experiment, Panel
+from trackjam.experiments.progress import SWARM_SHOWN
+from trackjam.experiments.summary import Metric, Pair
 from trackjam.experiments.trials import BALL_RADIUS_M, uniform_in_ball
 from trackjam.estimation.fusion import CONFIRM
 from trackjam.metrics.multi import HELD, UNDETECTABLE, multi_track_quality, ospa_series, target_classes
@@ -135,6 +137,65 @@ def swarm_fields(draw: SwarmDraw, one_target: bool = False) -> dict[str, Any]:
         target = {k: v for k, v in targets[0].items() if k != "id"}
         return {**placed, "targets": None, "target": target}
     return {**placed, "target": None, "targets": targets}
+
+
+# ---------------------------------------------------------------------------------------------
+# the experiment
+
+# ours, several targets: each metric against K, one line per N (experiments/swarm_figure.py)
+SWARM_PANELS = (
+    Panel("(a) held share per target", "share of detectable steps", (("held", None),)),
+    Panel("(b) held share while airborne (until downed)", "share of detectable steps", (("held_airborne", None),)),
+    Panel("(c) targets held on >= 50 % of their steps", "share of targets", (("held50", None),)),
+    Panel("(d) multi-target tracking error", "OSPA (p=2, c=10) [m]", (("ospa", None),)),
+    Panel("(e) targets downed", "share of targets", (("downed", None),)),
+    Panel("(f) time to down a target", "step of the fail-safe", (("time_to_down", None),)),
+)
+
+
+def swarm_experiment(grid: str | None = None) -> Experiment:
+    """``swarm`` over the grid ``grid`` (TARGETSxAGENTS, default 1-4x3-6): a configuration per
+    cell (K, N), K-major, then the K = 1 cells again on the one-target engine."""
+    targets, agents = parse_grid(grid)
+    cells = [Configuration(0, f"K={k}, N={n}", cell=(k, n)) for k in targets for n in agents]
+    cells += [Configuration(0, f"K=1, N={n}, one-target engine", cell=(1, n), one_target=True)
+              for n in agents if 1 in targets]
+    configurations = tuple(Configuration(i, c.label, cell=c.cell, one_target=c.one_target)
+                           for i, c in enumerate(cells, start=1))
+    return Experiment(
+        "swarm",
+        "ours: K targets x N agents on the swarm engine, jamming response on",
+        configurations,
+        "swarm.png",
+        panels=SWARM_PANELS,
+        metrics=SWARM_METRICS,
+        trials=SWARM,
+        preset="swarm-3",
+        trial=swarm_trial,
+        figure_style="lines",
+        shown=SWARM_SHOWN,
+        grid=grid_text((targets, agents)),
+        pairs=swarm_pairs(configurations),
+    )
+
+
+def swarm_pairs(configurations: tuple[Configuration, ...]) -> tuple[Pair, ...]:
+    """The swarm's paired comparisons: at each K, each N against the next and the smallest team
+    against the largest; at each N, each K against the next and the fewest targets against the
+    most; each K = 1 cell on the swarm engine against the one-target engine."""
+    swarm = {c.cell: c.index for c in configurations if not c.one_target}
+    reference = {c.cell: c.index for c in configurations if c.one_target}
+    targets, agents = sorted({k for k, _ in swarm}), sorted({n for _, n in swarm})
+
+    def chain(values: list[int]) -> list[tuple[int, int]]:
+        steps = list(zip(values, values[1:]))
+        return steps + ([(values[0], values[-1])] if len(values) > 2 else [])
+
+    pairs = [(swarm[(k, a)], swarm[(k, b)], f"K={k}: N={a} -> N={b}") for k in targets for a, b in chain(agents)]
+    pairs += [(swarm[(a, n)], swarm[(b, n)], f"N={n}: K={a} -> K={b}") for n in agents for a, b in chain(targets)]
+    pairs += [(reference[cell], swarm[cell], f"K=1, N={cell[1]}: one-target engine -> swarm engine")
+              for cell in reference]
+    return tuple(pairs)
 
 
 # ---------------------------------------------------------------------------------------------
