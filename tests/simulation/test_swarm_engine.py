@@ -162,7 +162,7 @@ def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_o
 
     with pytest.raises(ConfigError, match="^targets: 2 targets given"):
         Simulation(two())
-    for key, value in (("comms.loss", "0.1"), ("fusion.report_spread", "8"), ("control.fallback", "search")):
+    for key, value in (("comms.loss", "0.1"), ("fusion.existence", "evidence"), ("control.plan_over", "belief")):
         with pytest.raises(ConfigError, match=f"^{re.escape(key)}: .* not simulated with several targets"):
             SwarmSimulation(two(f"{key}={value}"))
 

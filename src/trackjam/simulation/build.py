@@ -211,11 +211,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     return [
         ("filter.visibility", s.filter.visibility, None),
         ("fusion.existence", s.fusion.existence, "mean"),
-        ("fusion.report_spread", s.fusion.report_spread, None),
         ("control.plan_over", s.control.plan_over, "point"),
-        ("control.fallback", s.control.fallback, "hover"),
-        ("control.lead", s.control.lead, 0.0),
-        ("control.horizon", s.control.horizon, 1),
         ("comms.loss", s.comms.loss, 0.0),
         ("comms.delay_steps", s.comms.delay_steps, 0),
         ("comms.failures", s.comms.failures, []),

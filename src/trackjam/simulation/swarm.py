@@ -6,8 +6,10 @@ Simulation`, a thin loop over the several-target blocks. One step:
 1. the truth swarm moves (:class:`trackjam.world.swarm.TruthSwarm`);
 2. every agent predicts its LMB filter (:class:`trackjam.estimation.lmb.LMBFilter`); the
    predicted tracks are fused across agents (:func:`trackjam.estimation.lmb_fusion.fuse_tracks`)
-   and the confirmed ones (fused existence > 0.5), most likely first, at most ``MAX_AIMS``, give
-   the planning aims x_bar_k;
+   and the confirmed ones (fused existence > 0.5), most likely first, then with
+   ``control.fallback: search`` the lost tracks coasted (:mod:`trackjam.simulation.swarm_search`),
+   at most ``MAX_AIMS`` in all, give the planning aims x_bar_k (moved ahead by ``control.lead`` /
+   ``control.horizon``);
 3. :func:`trackjam.control.assignment.solve_assignment` picks each agent's (move, level, aim);
    with no aim the team hovers at its last aims with the fall-back levels
    (:func:`trackjam.control.fallback.fallback_levels`);
@@ -23,7 +25,9 @@ Simulation`, a thin loop over the several-target blocks. One step:
    with ``fusion.share: scans`` every agent also updates on every teammate's scan of the step
    (the LMB's iterated corrector), every member of a cluster is informed, and there is no
    feedback (each filter already holds every scan);
-6. the reported tracks are judged against the detectable targets (:mod:`trackjam.metrics.multi`).
+6. the confirmed tracks (with ``fusion.report_spread``, those whose fused position spread is at
+   most that) are reported and judged against the detectable targets (:mod:`trackjam.metrics.multi`);
+   with ``control.fallback: search`` the team remembers the confirmed ones' states.
 
 Every message arrives (the ``comms`` faults are one-target only so far) and the team acts as one.
 """
@@ -46,7 +50,9 @@ from trackjam.metrics.multi import gated_assignment, ospa_parts
 from trackjam.radio.antenna import detection_probability, interference_matrix
 from trackjam.radio.measurement import sample_scan_multi, target_exposure
 from trackjam.simulation.build import SwarmComponents, build_swarm
+from trackjam.simulation.engine import located
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
+from trackjam.simulation.swarm_search import Aim, SearchMemory, plan_point
 from trackjam.world.swarm import TruthSwarm
 
 if TYPE_CHECKING:  # the scenario is read in one place, simulation/build.py
@@ -65,7 +71,8 @@ class SwarmAgent:
     filter: LMBFilter
     sensor_rng: np.random.Generator
     plan_rng: np.random.Generator
-    serves: str = ""  # label of the track its cone serves; "" while hovering
+    serves: str = ""  # label of the track its cone serves (or searches for); "" while hovering
+    mode: str = "hover"  # "track" | "search" (its aim is a lost track) | "hover"
 
 
 @dataclass(frozen=True)
@@ -176,6 +183,7 @@ class SwarmSimulation:
                 lmb.tracks = cue_tracks(lmb, first, [p.appears <= 1 and p.stochastic is None for p in c.targets], b.cue)
             self.agents.append(SwarmAgent(j, np.array(u, dtype=float), np.array(aim, dtype=float), lmb,
                                           np.random.default_rng(sensor_seed), np.random.default_rng(plan_seed)))
+        self.memory = SearchMemory(b.team.accel_var) if b.team.searching else None
         self.log = SwarmLog([str(i) for i in c.ids])
         self.t = 0
 
@@ -196,7 +204,7 @@ class SwarmSimulation:
         truth = self.truth
         truth.step(t)
         predicted = fuse_tracks([a.filter.predict() for a in self.agents])
-        aims = confirmed(predicted)[:MAX_AIMS]
+        aims = self._aims(t, predicted)
         t_plan = time.perf_counter()
         plan = self._plan(aims)
         solve_s = time.perf_counter() - t_plan
@@ -204,10 +212,9 @@ class SwarmSimulation:
         for a, move, k in zip(self.agents, plan["move"], plan["serve"]):
             a.position = a.position + b.displacements[move]
             if k >= 0:
-                a.aim = np.array(aims[k].estimate.mean[:3], dtype=float)
-                a.serves = track_label(aims[k])
+                a.aim, a.serves, a.mode = aims[k].point.copy(), aims[k].label, "search" if aims[k].search else "track"
             else:
-                a.serves = ""
+                a.serves, a.mode = "", "hover"
         positions = self.positions
         points = self._points(aims, plan["serve"])
         level_w = b.antenna.levels_w[plan["level"]]
@@ -230,7 +237,10 @@ class SwarmSimulation:
         team = informed_fusion(fuse_tracks(own), own, informed)
         if b.team.feedback and not shared:
             self._feed_back(team)
-        report = confirmed(team)
+        sure = confirmed(team)
+        if self.memory is not None:
+            self.memory.remember(t, [(track_label(f), f.estimate.mean, f.estimate.cov) for f in sure])
+        report = [f for f in sure if located(f.estimate.cov, b.report_spread)]
         labels = [track_label(f) for f in report]
         est = np.array([f.estimate.mean[:3] for f in report]).reshape(-1, 3)
         det = X[np.isfinite(X).all(axis=1)]
@@ -258,13 +268,28 @@ class SwarmSimulation:
                         measurements=[len(Z) for Z, _ in scans],
                         tracks=[sum(e.existence > CONFIRM for e in mine) for mine in own],
                         interference_w=interference, jammed=interference >= b.antenna.delta_w,
-                        to_targets_w=to_target.sum(axis=1), mode=[plan["mode"]] * len(self.agents)),
+                        to_targets_w=to_target.sum(axis=1), mode=[a.mode for a in self.agents]),
             scans=scans,
         )
         self.log.add(record)
         return record
 
-    def _plan(self, aims: list[FusedTrack]) -> dict:
+    def _aims(self, t: int, predicted: list[FusedTrack]) -> list[Aim]:
+        """The step's planning aims: the confirmed predicted tracks, most likely first, then the
+        search aims of the lost ones (``control.fallback: search``), at most ``MAX_AIMS``."""
+        b = self.c.base
+        positions = self.positions
+
+        def aim(label, mean, cov, search=False):
+            return Aim(label, mean, cov, plan_point(mean, positions, b.team.aim, b.low, b.high), search)
+
+        sure = [aim(track_label(f), f.estimate.mean, f.estimate.cov) for f in confirmed(predicted)[:MAX_AIMS]]
+        if self.memory is None:
+            return sure
+        lost = self.memory.lost(t, sure)[:MAX_AIMS - len(sure)]
+        return sure + [aim(label, m, P, search=True) for label, m, P in lost]
+
+    def _plan(self, aims: list[Aim]) -> dict:
         """The step's joint control: the solver's over the aims, or the hover fall-back."""
         b, n = self.c.base, len(self.agents)
         positions = self.positions
@@ -274,25 +299,25 @@ class SwarmSimulation:
             return dict(mode="hover", move=np.zeros(n, dtype=np.int64), level=np.asarray(levels, dtype=np.int64),
                         serve=np.full(n, -1), objective=np.nan, optimal=False, gap=np.nan)
         p = b.plan
-        x_bar = np.clip(np.array([f.estimate.mean[:3] for f in aims]), b.low, b.high)
+        x_bar = np.array([a.point for a in aims])
         problem = build_assignment(positions, x_bar, b.displacements, b.antenna, b.low, b.high,
                                    min(p.at_least, n), p.constraints, self.c.team_objective)
         options = SolverOptions(samples=p.samples, iterations=p.iterations, neighbours=p.neighbours,
                                 threads=p.threads, time_limit_s=p.time_limit_s)
         sol = solve_assignment(problem, p.solver, [a.plan_rng for a in self.agents], options)
-        return dict(mode="track", move=np.asarray(sol.move, dtype=np.int64),
+        return dict(mode="search" if all(a.search for a in aims) else "track", move=np.asarray(sol.move, dtype=np.int64),
                     level=np.asarray(sol.level, dtype=np.int64), serve=np.asarray(sol.target, dtype=np.int64),
                     objective=float(sol.objective), optimal=bool(sol.optimal), gap=float(sol.gap))
 
-    def _points(self, aims: list[FusedTrack], serve: np.ndarray) -> np.ndarray:
+    def _points(self, aims: list[Aim], serve: np.ndarray) -> np.ndarray:
         """Where each antenna points: its aim, or under ``pointing: truth`` the true position of
-        the target matched (within metrics.gate) to the aim it serves."""
+        the target matched (within metrics.gate) to the track position of the aim it serves."""
         b = self.c.base
         points = np.array([a.aim for a in self.agents])
         if b.pointing != "truth" or not aims:
             return points
         truth = self.truth.positions
-        aim_of = gated_assignment(truth, np.array([f.estimate.mean[:3] for f in aims]), b.gate)
+        aim_of = gated_assignment(truth, np.array([a.mean[:3] for a in aims]), b.gate)
         for k, a in enumerate(aim_of):
             if a >= 0:
                 points[serve == a] = truth[k]

@@ -12,11 +12,11 @@ SWARM_STEPS: tuple[Column, ...] = (
     Column("targets_present", "int64", "", "truth targets present"),
     Column("targets_detectable", "int64", "", "truth targets present and not occluded"),
     Column("tracks", "int64", "", "tracks the team reports (fused existence > 0.5)"),
-    Column("aims", "int64", "", "confirmed predicted tracks the team planned at (the aims x_bar_k)"),
+    Column("aims", "int64", "", "aims x_bar_k the team planned at: confirmed predicted tracks and search aims"),
     Column("ospa", "float64", "m", "multi-target OSPA(p, c) between the detectable targets and the reported tracks"),
     Column("ospa_loc", "float64", "m", "its localisation part"),
     Column("ospa_card", "float64", "m", "its cardinality part (ospa^p = loc^p + card^p)"),
-    Column("mode", "str", "", "track (the solver planned at the aims) or hover (no aim: the fall-back levels)"),
+    Column("mode", "str", "", "track (the solver planned at the aims), search (every aim a lost track's) or hover (no aim: the fall-back levels)"),
     Column("objective", "float64", "", "the team objective (sum over the aims of Xi_k) of the plan; NaN under hover"),
     Column("optimal", "bool", "", "the plan is proven optimal"),
     Column("gap", "float64", "", "certified bound on optimum - objective; NaN without a certificate"),
@@ -53,7 +53,7 @@ SWARM_AGENTS: tuple[Column, ...] = (
     Column("tracks", "int64", "", "its own tracks with existence > 0.5, before fusion"),
     *AGENT_INTERFERENCE,
     Column("to_targets_w", "float64", "W", "power it delivers at the targets, summed over them, Eq. (10)"),
-    Column("mode", "str", "", "track or hover: the plan it followed"),
+    Column("mode", "str", "", "track, search (it serves a lost track's search aim) or hover"),
 )
 
 SWARM_MEASUREMENTS: tuple[Column, ...] = (
