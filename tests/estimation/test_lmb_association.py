@@ -17,6 +17,7 @@ from trackjam.estimation.lmb_association import (
     kernel_gibbs,
     marginals,
     ranked_hypotheses,
+    unique_rows,
 )
 
 
@@ -109,6 +110,13 @@ def test_gibbs_marginals_equal_enumeration(log_eta, seed):
     assert np.all(seen[p >= 0.01])
     beta = association_marginals(log_eta, "gibbs", np.random.default_rng(seed), samples=1000)
     assert np.abs(beta - brute_force_marginals(log_eta)).max() <= 2 * p[~seen].sum() + 1e-12
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 40), st.integers(0, 6), st.integers(1, 4))
+def test_unique_rows_is_numpys_unique(seed, H, T, values):
+    a = np.random.default_rng(seed).integers(0, values, size=(H, T))
+    np.testing.assert_array_equal(unique_rows(a), np.unique(a, axis=0))
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

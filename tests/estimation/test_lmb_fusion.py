@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from trackjam.estimation.bernoulli import Estimate
 from trackjam.estimation.fusion import fuse
 from trackjam.estimation.lmb import TrackEstimate
-from trackjam.estimation.lmb_fusion import GATE, associate_tracks, fuse_tracks, mahalanobis2
+from trackjam.estimation.lmb_fusion import GATE, associate_tracks, fuse_tracks, mahalanobis2, mahalanobis2_matrix
 
 
 def track(label, e, pos, std=1.0, vel=(0.0, 0.0, 0.0)):
@@ -31,6 +31,32 @@ def assert_same(fused, expected):
 def test_mahalanobis_of_positions():
     a, b = track((1, 0), 0.9, (0, 0, 0), std=1.0), track((1, 0), 0.9, (2, 0, 0), std=1.0, vel=(9, 9, 9))
     assert mahalanobis2(a, b) == pytest.approx(4.0 / 2.0)  # velocities do not count
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 5), st.integers(1, 5))
+def test_mahalanobis_matrix_is_every_pair(seed, na, nb):
+    """The batched d^2 equals the pair's own pseudo-inverse formula, a collapsed track (zero
+    covariance) and a flat one included."""
+    rng = np.random.default_rng(seed)
+
+    def tracks(n):
+        out = []
+        for i in range(n):
+            L = rng.normal(0, 2, (6, 6))
+            cov = [L @ L.T, np.zeros((6, 6)), np.diag([1.0, 1.0, 0.0, 1.0, 1.0, 1.0])][rng.integers(3)]
+            out.append(TrackEstimate((1, i), 0.9, rng.normal(0, 5, 6), cov))
+        return out
+
+    A, B = tracks(na), tracks(nb)
+    D = mahalanobis2_matrix(A, B)
+    assert D.shape == (na, nb)
+    for i, a in enumerate(A):
+        for j, b in enumerate(B):
+            d = a.mean[:3] - b.mean[:3]
+            S = a.cov[:3, :3] + b.cov[:3, :3]
+            assert D[i, j] == pytest.approx(d @ np.linalg.pinv(S) @ d, rel=1e-9, abs=1e-9)
+            assert mahalanobis2(a, b) == pytest.approx(D[i, j], rel=1e-12, abs=1e-12)
 
 
 def test_two_agents_with_the_same_track_give_one():

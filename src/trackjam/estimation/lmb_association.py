@@ -101,13 +101,24 @@ def kernel_gibbs(log_eta, start, uniforms):
     return out
 
 
+def unique_rows(a: np.ndarray) -> np.ndarray:
+    """The distinct rows of an integer array (H, T) in lexicographic order: ``np.unique(a,
+    axis=0)``, which sorts structured records, more than ten times slower on the sweeps."""
+    if len(a) == 0 or a.shape[1] == 0:
+        return a[: min(len(a), 1)]
+    s = a[np.lexsort(a.T[::-1])]
+    keep = np.ones(len(s), dtype=bool)
+    keep[1:] = np.any(s[1:] != s[:-1], axis=1)
+    return s[keep]
+
+
 def gibbs_hypotheses(log_eta: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
     """Distinct joint hypotheses (H, T) visited by ``samples`` Gibbs sweeps started at the best
     one (which is therefore always among them)."""
     log_eta = _floored(log_eta)
     start = best_hypothesis(log_eta)
     drawn = kernel_gibbs(log_eta, start, rng.random((samples, len(log_eta))))
-    return np.unique(np.vstack([start[None, :], drawn]), axis=0)
+    return unique_rows(np.vstack([start[None, :], drawn]))
 
 
 def _solve(C: np.ndarray):

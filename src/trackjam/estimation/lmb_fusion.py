@@ -40,11 +40,26 @@ class FusedTrack:
     estimate: FusedEstimate
 
 
+def _positions(ts: Sequence[TrackEstimate]) -> np.ndarray:
+    return np.array([np.asarray(t.mean, float)[:3] for t in ts]).reshape(-1, 3)
+
+
+def _position_covs(ts: Sequence[TrackEstimate]) -> np.ndarray:
+    return np.array([np.asarray(t.cov, float)[:3, :3] for t in ts]).reshape(-1, 3, 3)
+
+
+def mahalanobis2_matrix(A: Sequence[TrackEstimate], B: Sequence[TrackEstimate]) -> np.ndarray:
+    """d^2 (len(A), len(B)) of every pair of tracks' positions under the sum of their position
+    covariances (the pseudo-inverse: a track whose particles collapsed to one point has none)."""
+    d = _positions(A)[:, None, :] - _positions(B)[None, :, :]
+    S = _position_covs(A)[:, None] + _position_covs(B)[None, :]
+    P = np.linalg.pinv(0.5 * (S + np.swapaxes(S, -1, -2)), hermitian=True)
+    return (d[..., None, :] @ P @ d[..., :, None])[..., 0, 0]
+
+
 def mahalanobis2(a: TrackEstimate, b: TrackEstimate) -> float:
     """d^2 of two tracks' positions under the sum of their position covariances."""
-    d = np.asarray(a.mean[:3], float) - np.asarray(b.mean[:3], float)
-    S = np.asarray(a.cov, float)[:3, :3] + np.asarray(b.cov, float)[:3, :3]
-    return float(d @ np.linalg.pinv(0.5 * (S + S.T), hermitian=True) @ d)
+    return float(mahalanobis2_matrix([a], [b])[0, 0])
 
 
 def associate_tracks(tracks: Sequence[Sequence[TrackEstimate]], gate: float = GATE) -> list[list[tuple[int, int]]]:
@@ -55,7 +70,7 @@ def associate_tracks(tracks: Sequence[Sequence[TrackEstimate]], gate: float = GA
             continue
         if clusters:
             reps = [max(c, key=lambda ai: tracks[ai[0]][ai[1]].existence) for c in clusters]
-            D = np.array([[mahalanobis2(tracks[a][i], t) for t in mine] for a, i in reps])
+            D = mahalanobis2_matrix([tracks[a][i] for a, i in reps], mine)
             # a pair beyond the gate costs more than all pairs within it together, so the
             # assignment makes as few of them as it can
             outside = gate * (min(D.shape) + 1) + 1.0
