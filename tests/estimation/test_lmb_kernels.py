@@ -36,22 +36,27 @@ def test_association_factors_equal_numpy_twin_and_the_bernoulli_kernel(seed, m, 
     np.testing.assert_allclose(np.log(L), log_L, rtol=1e-9, atol=1e-12)
 
 
-@settings(max_examples=40, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(1, 50), st.integers(1, 4), st.floats(0.0, 0.6))
-def test_log_mean_and_mixture_kernels_equal_numpy_twins(seed, n, k, share_inf):
-    """The compiled <f_c> and posterior weights against scipy's logsumexp, -inf entries included
-    (a particle outside the cone, a measurement beyond the gate, a column with beta = 0)."""
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 50), st.integers(0, 4), st.floats(0.0, 0.6))
+def test_log_mean_and_mixture_kernels_equal_numpy_twins(seed, n, m, share_inf):
+    """The compiled <f_c> and posterior weights against scipy's logsumexp over the factor matrix
+    [log(1 - p_D), log p_D + log g_j], -inf entries included (a particle outside the cone, a
+    measurement beyond the gate, a column with beta = 0)."""
     rng = np.random.default_rng(seed)
     log_w = rng.normal(0, 2, n)
     log_w -= logsumexp(log_w)
-    log_f = np.where(rng.random((n, k)) < share_inf, -np.inf, rng.normal(0, 5, (n, k)))
-    coef = np.where(rng.random(k) < share_inf, -np.inf, rng.normal(0, 3, k))
+    log_p_d = np.where(rng.random(n) < share_inf, -np.inf, rng.normal(-1, 1, n))
+    log_miss = np.where(rng.random(n) < share_inf / 4, -np.inf, rng.normal(-0.5, 0.5, n))
+    log_g = np.where(rng.random((n, m)) < share_inf, -np.inf, rng.normal(0, 5, (n, m)))
+    log_f = np.column_stack([log_miss, log_p_d[:, None] + log_g])
+    coef = np.where(rng.random(m + 1) < share_inf, -np.inf, rng.normal(0, 3, m + 1))
     with np.errstate(divide="ignore", invalid="ignore"):
-        np.testing.assert_allclose(kernel_log_means(log_w, log_f), logsumexp(log_w[:, None] + log_f, axis=0),
-                                   rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(kernel_log_means(log_w, log_miss, log_p_d, log_g),
+                                   logsumexp(log_w[:, None] + log_f, axis=0), rtol=1e-12, atol=1e-12)
         use = np.isfinite(coef)
         if not use.any() or not np.isfinite(log_f[:, use]).any():
             return
         twin = log_w + logsumexp(log_f[:, use] + coef[use], axis=1)
         twin -= logsumexp(twin)
-    np.testing.assert_allclose(kernel_mixture_log_weights(log_w, log_f, coef), twin, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(kernel_mixture_log_weights(log_w, log_miss, log_p_d, log_g, coef), twin,
+                               rtol=1e-12, atol=1e-12)

@@ -109,11 +109,14 @@ class TrackEstimate:
 
 @dataclass(frozen=True)
 class Factors:
-    """Per track of one scan: ``log_f`` (n, m + 1), column 0 log(1 - p_D), column 1 + j
-    log p_D + log g(y_j | x) / kappa, per particle; ``log_mean`` (m + 1,) their means <f_c> over
-    the track's density; ``log_eta`` (m + 1,) the track's row of eta."""
+    """Per track of one scan, per particle: ``log_miss`` (n,) log(1 - p_D), ``log_p_d`` (n,)
+    log p_D and ``log_g`` (n, m) log g(y_j | x) / kappa (the factor of column 1 + j is
+    log_p_d + log_g[:, j]); ``log_mean`` (m + 1,) the factors' means <f_c> over the track's
+    density; ``log_eta`` (m + 1,) the track's row of eta."""
 
-    log_f: np.ndarray
+    log_miss: np.ndarray
+    log_p_d: np.ndarray
+    log_g: np.ndarray
     log_mean: np.ndarray
     log_eta: np.ndarray
 
@@ -126,13 +129,14 @@ def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_ka
         ant.r0, ant.n_e, np.asarray(noise_std, dtype=float), float(log_kappa),
     )
     with np.errstate(divide="ignore"):
-        log_f = np.column_stack([np.log1p(-np.minimum(p_d, 1.0)), np.log(p_d)[:, None] + log_g])
-        log_mean = kernel_log_means(track.log_w, np.ascontiguousarray(log_f))
+        log_miss = np.log1p(-np.minimum(p_d, 1.0))
+        log_p_d = np.log(p_d)
+        log_mean = kernel_log_means(track.log_w, log_miss, log_p_d, log_g)
         log_r = math.log(track.r) if track.r > 0.0 else -np.inf
         log_not = math.log1p(-track.r) if track.r < 1.0 else -np.inf
     log_eta = log_r + log_mean
     log_eta[0] = np.logaddexp(log_not, log_r + log_mean[0])
-    return Factors(log_f, log_mean, log_eta)
+    return Factors(log_miss, log_p_d, log_g, log_mean, log_eta)
 
 
 def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
@@ -151,7 +155,7 @@ def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
         return replace(track, r=0.0)
     usable = np.isfinite(log_coef) & np.isfinite(log_mean)
     coef = np.where(usable, log_coef - np.where(usable, log_mean, 0.0), -np.inf)
-    log_post = kernel_mixture_log_weights(track.log_w, np.ascontiguousarray(f.log_f), coef)
+    log_post = kernel_mixture_log_weights(track.log_w, f.log_miss, f.log_p_d, f.log_g, coef)
     return replace(track, r=min(r_new, 1.0), log_w=log_post)
 
 

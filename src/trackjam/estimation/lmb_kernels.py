@@ -39,12 +39,18 @@ def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n
         dz = X[i, 2] - u[2]
         rho_xy = math.sqrt(dx * dx + dy * dy)
         rho = math.sqrt(rho_xy * rho_xy + dz * dz)
-        az = math.atan2(dy, dx)
-        inc = math.atan2(rho_xy, dz)
+        # most particles pass no measurement's range gate: their angles are never needed
+        have_angles = False
+        az = 0.0
+        inc = 0.0
         for j in range(m):
             e0 = (Z[j, 0] - rho) / s0
             if e0 > GATE or e0 < -GATE:
                 continue
+            if not have_angles:
+                az = math.atan2(dy, dx)
+                inc = math.atan2(rho_xy, dz)
+                have_angles = True
             e1 = _wrap(Z[j, 1] - az) / s1
             e2 = _wrap(Z[j, 2] - inc) / s2
             d2 = e0 * e0 + e1 * e1 + e2 * e2
@@ -54,48 +60,69 @@ def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n
 
 
 @njit(cache=True)
-def kernel_log_means(log_w, log_f):
-    """log sum_i exp(log_w[i] + log_f[i, c]) per column c: log <f_c> over a track's density."""
-    n, k = log_f.shape
-    out = np.empty(k)
-    for c in range(k):
-        mx = -np.inf
-        for i in range(n):
-            v = log_w[i] + log_f[i, c]
-            if v > mx:
-                mx = v
-        if mx == -np.inf:
-            out[c] = -np.inf
-            continue
-        acc = 0.0
-        for i in range(n):
-            v = log_w[i] + log_f[i, c]
-            if v > -np.inf:
-                acc += math.exp(v - mx)
-        out[c] = mx + math.log(acc)
+def kernel_log_means(log_w, log_miss, log_p_d, log_g):
+    """log <f_c> = log sum_i w_i f_c(x_i) per column c of a track's factors: f_0 = 1 - p_D
+    (``log_miss`` (n,)), f_{1+j} = p_D g(y_j | x) / kappa (``log_p_d`` (n,) + ``log_g`` (n, m));
+    a particle outside the cone (p_D = 0) adds to column 0 only."""
+    n, m = log_g.shape
+    mx = np.full(m + 1, -np.inf)
+    for i in range(n):
+        v = log_w[i] + log_miss[i]
+        if v > mx[0]:
+            mx[0] = v
+        if log_p_d[i] > -np.inf:
+            for j in range(m):
+                v = log_w[i] + (log_p_d[i] + log_g[i, j])
+                if v > mx[1 + j]:
+                    mx[1 + j] = v
+    acc = np.zeros(m + 1)
+    for i in range(n):
+        v = log_w[i] + log_miss[i]
+        if v > -np.inf:
+            acc[0] += math.exp(v - mx[0])
+        if log_p_d[i] > -np.inf:
+            for j in range(m):
+                v = log_w[i] + (log_p_d[i] + log_g[i, j])
+                if v > -np.inf:
+                    acc[1 + j] += math.exp(v - mx[1 + j])
+    out = np.empty(m + 1)
+    for c in range(m + 1):
+        out[c] = -np.inf if mx[c] == -np.inf else mx[c] + math.log(acc[c])
     return out
 
 
 @njit(cache=True)
-def kernel_mixture_log_weights(log_w, log_f, coef):
-    """Normalised log of w_i sum_c exp(log_f[i, c] + coef[c]) over the columns with a finite
-    ``coef``: the posterior weights of a track's particles."""
-    n, k = log_f.shape
+def kernel_mixture_log_weights(log_w, log_miss, log_p_d, log_g, coef):
+    """Normalised log of w_i sum_c f_c(x_i) exp(coef[c]) over the columns with a finite
+    ``coef`` (the factors f_c of :func:`kernel_log_means`): the posterior weights of a track's
+    particles."""
+    n, m = log_g.shape
     out = np.empty(n)
     for i in range(n):
         mx = -np.inf
-        for c in range(k):
-            if coef[c] > -np.inf:
-                v = log_f[i, c] + coef[c]
-                if v > mx:
-                    mx = v
+        if coef[0] > -np.inf:
+            mx = log_miss[i] + coef[0]
+        seen = log_p_d[i] > -np.inf
+        if seen:
+            for j in range(m):
+                if coef[1 + j] > -np.inf:
+                    v = (log_p_d[i] + log_g[i, j]) + coef[1 + j]
+                    if v > mx:
+                        mx = v
         if mx == -np.inf:
             out[i] = -np.inf
             continue
+        if not seen:  # only column 0: the sum is exp(0) = 1
+            out[i] = log_w[i] + mx
+            continue
         acc = 0.0
-        for c in range(k):
-            if coef[c] > -np.inf:
-                v = log_f[i, c] + coef[c]
+        if coef[0] > -np.inf:
+            v = log_miss[i] + coef[0]
+            if v > -np.inf:
+                acc += math.exp(v - mx)
+        for j in range(m):
+            if coef[1 + j] > -np.inf:
+                v = (log_p_d[i] + log_g[i, j]) + coef[1 + j]
                 if v > -np.inf:
                     acc += math.exp(v - mx)
         out[i] = log_w[i] + mx + math.log(acc)
