@@ -8,11 +8,15 @@ p_D alone searched 35 times fewer nodes in total than index order (60 instances)
 order halved the total again (200 instances per objective), mostly on the hardest ones.
 Each agent's choices form K blocks, one per target, in target order; within block k its
 (candidate, level) pairs come in the one-target order (p_D at x_bar_k descending, then lower
-level, then lower move: :func:`pair_order`). The result is the
-first optimum in this order (improvements must be strict; the start is every agent hovering at
-level 0 serving target 0); with K = 1 this is exactly the one-target search, so it returns its
-plan. Eq. (13) is forward-checked as there, with the one-target kernels over extended
-candidates (slot c aimed at x_bar_k).
+level, then lower move: :func:`pair_order`). The result is the first optimum in this order
+(improvements must be strict; the start is every agent hovering at level 0 serving target 0);
+with K = 1 this is exactly the one-target search, so it returns its plan. Before the search,
+:mod:`assignment_incumbent` builds a feasible plan of value v, and the search starts with that
+plan as its incumbent at the value v - 1e-9 max(1, |v|): it prunes whatever cannot beat v from
+the first node on, while the first optimum in the order, worth at least v, is still reached and
+taken. A complete search therefore returns the same plan as from the start alone; one stopped
+by its budget may return the constructed plan. Eq. (13) is forward-checked as there, with the
+one-target kernels over extended candidates (slot c aimed at x_bar_k).
 
 The bound. At depth d (d agents placed) every unplaced agent j has, per target k, its
 best p_D b_jk among pairs still admissible against the placed agents (none: it cannot serve k).
@@ -30,18 +34,18 @@ The tests hold the kernel to a plain-numpy enumeration of every choice in this o
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import numpy as np
 from numba import njit
 
+from trackjam.control.assignment_incumbent import kernel_incumbent
 from trackjam.control.assignment_problem import (
     AssignmentProblem,
     AssignmentSolution,
     kernel_targets_value,
     to_assignment_solution,
 )
-from trackjam.control.exact import CHUNK_S, _first_admissible, _pair_row, pair_order
+from trackjam.control.exact import BranchAndBound, _first_admissible, _pair_row, pair_order
 from trackjam.control.objective import kernel_feasible
 
 
@@ -273,10 +277,14 @@ def agent_order(problem: AssignmentProblem) -> np.ndarray:
     return np.array(order, dtype=np.int64)
 
 
-class AssignmentSearch:
-    """One exact search over an :class:`AssignmentProblem`, run in chunks."""
+INCUMBENT_MARGIN = 1e-9  # the constructed plan's value is lowered by this (relative) before the search
 
-    def __init__(self, problem: AssignmentProblem):
+
+class AssignmentSearch:
+    """One exact search over an :class:`AssignmentProblem`, run in chunks; ``incumbent=False``
+    starts it from every agent hovering at level 0 alone (the module docstring)."""
+
+    def __init__(self, problem: AssignmentProblem, incumbent: bool = True):
         self.problem = problem
         N, K, C, L = problem.n_agents, problem.n_targets, problem.n_slots, problem.n_levels
         self.agent = agent_order(problem)
@@ -321,6 +329,15 @@ class AssignmentSearch:
                              problem.kind, constrained, N)
         self.best_value = np.array([start])
         self.finished = False
+        if incumbent:
+            pair, target = np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.int64)
+            v = kernel_incumbent(problem.pz, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
+                                 problem.kind, constrained, problem.n_cand, self.agent, pair, target)
+            bound = v - INCUMBENT_MARGIN * max(1.0, abs(v))
+            if np.isfinite(v) and bound > start:
+                self.best_value[0] = bound
+                self.best_pair[:] = pair
+                self.best_target[:] = target
 
     @property
     def nodes(self) -> int:
@@ -343,28 +360,9 @@ class AssignmentSearch:
             ))
         return self.finished
 
-    def run(self, time_limit_s: float | None = None, node_limit: int = 0) -> bool:
-        """Search until done, ``time_limit_s`` [s] has passed or ``node_limit`` nodes (> 0) have
-        been visited (chunks sized as in the one-target search); True when complete."""
-        start = time.perf_counter()
-        chunk = 2048
-        while True:
-            if node_limit > 0:
-                chunk = min(chunk, node_limit - self.nodes)
-                if chunk <= 0:
-                    return self.finished
-            t0 = time.perf_counter()
-            if self.step(chunk):
-                return True
-            now = time.perf_counter()
-            aim = CHUNK_S
-            if time_limit_s is not None:
-                left = time_limit_s - (now - start)
-                if left <= 0:
-                    return False
-                aim = min(CHUNK_S, left)
-            rate = chunk / max(now - t0, 1e-6)
-            chunk = int(min(max(rate * aim, 64), 1 << 26))
+    # the one-target search's chunked loop under a time or node budget: it needs only
+    # ``nodes``, ``finished`` and ``step()``
+    run = BranchAndBound.run
 
     def open_bound(self) -> float:
         """Largest bound of any branch not yet explored (-inf when none is left): at every depth
