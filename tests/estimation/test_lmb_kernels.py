@@ -3,12 +3,20 @@
 posterior particle weights."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import logsumexp
 
 from trackjam.estimation.kernels import kernel_update_factors
-from trackjam.estimation.lmb_kernels import kernel_association_factors, kernel_log_means, kernel_mixture_log_weights
+from trackjam.estimation.lmb_kernels import (
+    kernel_association_factors,
+    kernel_ball,
+    kernel_beyond_cone,
+    kernel_log_means,
+    kernel_mixture_log_weights,
+)
+from trackjam.radio.antenna import cone_gain
 from trackjam.radio.measurement import h, wrap_angle
 
 from test_lmb import ANT, AX, LOG_KAPPA, SIGMA, U, factors_twin, scan
@@ -60,3 +68,27 @@ def test_log_mean_and_mixture_kernels_equal_numpy_twins(seed, n, m, share_inf):
         twin -= logsumexp(twin)
     np.testing.assert_allclose(kernel_mixture_log_weights(log_w, log_miss, log_p_d, log_g, coef), twin,
                                rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 300), st.floats(0.05, 30.0), st.floats(0.0, 60.0))
+def test_a_ball_beyond_the_cone_holds_no_particle_in_it(seed, n, spread, distance):
+    """The ball holds every particle (its centre the mean); whenever the ball test says it lies
+    beyond the cone, every particle's cone gain (numpy's Eq. 9 geometry) and the compiled p_D
+    are 0; a small cloud far behind the apex is always beyond, one on the axis never."""
+    rng = np.random.default_rng(seed)
+    direction = rng.normal(size=3)
+    centre = U + distance * direction / np.linalg.norm(direction)
+    X = np.hstack([centre + rng.normal(0, spread, (n, 3)), np.zeros((n, 3))])
+    c, radius = kernel_ball(X)
+    np.testing.assert_allclose(c, X[:, :3].mean(axis=0), rtol=1e-12, atol=1e-12)
+    assert radius == pytest.approx(np.linalg.norm(X[:, :3] - c, axis=1).max(), rel=1e-12)
+    if kernel_beyond_cone(c, radius, U, AX, ANT.height, ANT.tan_half, 1e-6):
+        assert not np.any(cone_gain(X[:, :3], U, U + AX, ANT) > 0)
+        sc = scan(np.zeros((0, 3)))
+        p_d, _ = kernel_association_factors(X, sc.Z, U, sc.axis, sc.p_d_scale, ANT.height, ANT.tan_half, ANT.r0,
+                                            ANT.n_e, SIGMA, LOG_KAPPA)
+        assert not np.any(p_d > 0)
+    for cloud, beyond in ((U - 30 * AX, True), (U + 10 * AX, False)):
+        X = np.hstack([cloud + rng.normal(0, 0.5, (n, 3)), np.zeros((n, 3))])
+        assert kernel_beyond_cone(*kernel_ball(X), U, AX, ANT.height, ANT.tan_half, 1e-6) == beyond

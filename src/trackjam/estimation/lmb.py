@@ -43,13 +43,20 @@ from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
 from trackjam.estimation.kernels import kernel_cv_predict, kernel_logsumexp, kernel_reflect, kernel_systematic_indices
 from trackjam.estimation.lmb_association import association_marginals
-from trackjam.estimation.lmb_kernels import kernel_association_factors, kernel_log_means, kernel_mixture_log_weights
+from trackjam.estimation.lmb_kernels import (
+    kernel_association_factors,
+    kernel_ball,
+    kernel_beyond_cone,
+    kernel_log_means,
+    kernel_mixture_log_weights,
+)
 from trackjam.radio.antenna import AntennaModel
 from trackjam.radio.measurement import clutter_density
 
 DT = 1.0  # dT [s]
 CONFIRM = 0.5  # a track is confirmed once r > 0.5 (Section V-A's e > 0.5)
 BIRTH_FLOOR = 0.1  # smallest standard deviation per axis of a birth's position Gaussian [m] (ours)
+CONE_MARGIN = 1e-6  # [m] a track's particles this far outside a scan's cone skip its kernel (10^3 x its tolerance)
 
 
 @dataclass(frozen=True)
@@ -121,19 +128,32 @@ class Factors:
     log_eta: np.ndarray
 
 
-def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_kappa: float) -> Factors:
+def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_kappa: float,
+                  ball: tuple[np.ndarray, float] | None = None) -> Factors:
     """The association weights of one track for one scan (the module docstring of
-    :mod:`trackjam.estimation.lmb_association`)."""
-    p_d, log_g = kernel_association_factors(
-        np.ascontiguousarray(track.X), scan.Z, scan.u, scan.axis, scan.p_d_scale, ant.height, ant.tan_half,
-        ant.r0, ant.n_e, np.asarray(noise_std, dtype=float), float(log_kappa),
-    )
-    with np.errstate(divide="ignore"):
+    :mod:`trackjam.estimation.lmb_association`); ``ball`` (centre, radius) holds the track's
+    particles (:func:`kernel_ball`, computed here when not given): a track whose ball lies
+    outside the scan's cone has p_D = 0 at every particle, known without visiting them."""
+    X = np.ascontiguousarray(track.X)
+    centre, radius = kernel_ball(X) if ball is None else ball
+    if scan.p_d_scale <= 0.0 or kernel_beyond_cone(centre, radius, scan.u, scan.axis, ant.height, ant.tan_half,
+                                                   CONE_MARGIN):
+        # what the kernel would return: p_D = 0 everywhere, so no measurement is the track's
+        p_d, log_g = np.zeros(len(X)), np.full((len(X), len(scan.Z)), -np.inf)
+    else:
+        p_d, log_g = kernel_association_factors(
+            X, scan.Z, scan.u, scan.axis, scan.p_d_scale, ant.height, ant.tan_half, ant.r0, ant.n_e,
+            np.asarray(noise_std, dtype=float), float(log_kappa),
+        )
+    with np.errstate(divide="ignore"):  # p_D = 1 leaves no miss
         log_miss = np.log1p(-np.minimum(p_d, 1.0))
-        log_p_d = np.log(p_d)
-        log_mean = kernel_log_means(track.log_w, log_miss, log_p_d, log_g)
-        log_r = math.log(track.r) if track.r > 0.0 else -np.inf
-        log_not = math.log1p(-track.r) if track.r < 1.0 else -np.inf
+    seen = p_d > 0.0
+    # numpy's log takes a slow path on zeros: log 1 = 0 in their place, then -inf
+    log_p_d = np.log(np.where(seen, p_d, 1.0))
+    log_p_d[~seen] = -np.inf
+    log_mean = kernel_log_means(track.log_w, log_miss, log_p_d, log_g)
+    log_r = math.log(track.r) if track.r > 0.0 else -np.inf
+    log_not = math.log1p(-track.r) if track.r < 1.0 else -np.inf
     log_eta = log_r + log_mean
     log_eta[0] = np.logaddexp(log_not, log_r + log_mean[0])
     return Factors(log_miss, log_p_d, log_g, log_mean, log_eta)
@@ -160,12 +180,16 @@ def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
 
 
 def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, log_kappa: float,
-               rng: np.random.Generator, method: str = "gibbs", samples: int = 1000, k: int = 200):
+               rng: np.random.Generator, method: str = "gibbs", samples: int = 1000, k: int = 200,
+               balls: Sequence[tuple[np.ndarray, float]] | None = None):
     """The update of all tracks by one scan. Returns ``(tracks, beta, r_U)``: the posterior
     tracks (not resampled, not pruned), the association marginals (T, m + 1) and r_U (m,), the
-    probability that each measurement was some track's."""
+    probability that each measurement was some track's. ``balls[i]`` holds track i's particles
+    (:func:`track_factors`; the particles do not move within an update, so one ball serves every
+    scan of it)."""
     m = len(scan.Z)
-    factors = [track_factors(t, scan, ant, noise_std, log_kappa) for t in tracks]
+    factors = [track_factors(t, scan, ant, noise_std, log_kappa, None if balls is None else balls[i])
+               for i, t in enumerate(tracks)]
     log_eta = np.array([f.log_eta for f in factors]).reshape(len(tracks), m + 1)
     beta = association_marginals(log_eta, method, rng, samples, k)
     posterior = [posterior_track(t, f, b) for t, f, b in zip(tracks, factors, beta)]
@@ -253,11 +277,13 @@ class LMBFilter:
             self.predict()
         scan = Scan.of(Z, u, aim, level_w, self.ant)
         p = self.p
+        ball = {t.label: kernel_ball(np.ascontiguousarray(t.X)) for t in self.tracks}
         posterior, _, r_U = lmb_update(self.tracks, scan, self.ant, self.noise_std, self.log_kappa, self.rng,
-                                       p.association, p.gibbs_samples, p.ranked_k)
+                                       p.association, p.gibbs_samples, p.ranked_k, [ball[t.label] for t in self.tracks])
         for other in others:
-            posterior, _, _ = lmb_update([t for t in posterior if t.r > 0.0], other, self.ant, self.noise_std,
-                                         self.log_kappa, self.rng, p.association, p.gibbs_samples, p.ranked_k)
+            alive = [t for t in posterior if t.r > 0.0]
+            posterior, _, _ = lmb_update(alive, other, self.ant, self.noise_std, self.log_kappa, self.rng,
+                                         p.association, p.gibbs_samples, p.ranked_k, [ball[t.label] for t in alive])
         kept = sorted((t for t in posterior if t.r >= p.prune), key=lambda t: -t.r)[: p.max_tracks]
         self.tracks = [self._resampled(replace(t, confirmed=t.confirmed or t.r > CONFIRM)) for t in kept]
         self._births = []

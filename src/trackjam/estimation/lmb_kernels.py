@@ -16,6 +16,45 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 @njit(cache=True)
+def kernel_ball(X):
+    """Centre (3,) and radius [m] of a ball holding every particle's position: the mean and the
+    largest distance from it."""
+    n = X.shape[0]
+    c = np.zeros(3)
+    for i in range(n):
+        for k in range(3):
+            c[k] += X[i, k]
+    if n > 0:
+        c /= n
+    r2 = 0.0
+    for i in range(n):
+        d2 = (X[i, 0] - c[0]) ** 2 + (X[i, 1] - c[1]) ** 2 + (X[i, 2] - c[2]) ** 2
+        if d2 > r2:
+            r2 = d2
+    return c, math.sqrt(r2)
+
+
+@njit(cache=True)
+def kernel_beyond_cone(centre, radius, u, axis, height, tan_half, margin):
+    """True when no point of the ball (``centre``, ``radius``) can lie in the cone (apex ``u``,
+    unit ``axis``, height, tan of the half-angle): the ball lies more than ``margin`` [m] beyond
+    its base, behind its apex or outside its side. The side's test is f(x) = |x_perp| cos(theta)
+    - s sin(theta) > margin (s along the axis, x_perp across), and f is 1-Lipschitz, so
+    f(centre) - radius > margin holds f > margin at every point of the ball."""
+    dx = centre[0] - u[0]
+    dy = centre[1] - u[1]
+    dz = centre[2] - u[2]
+    s = dx * axis[0] + dy * axis[1] + dz * axis[2]
+    if s + radius < -margin or s - radius > height + margin:
+        return True
+    px = dx - s * axis[0]
+    py = dy - s * axis[1]
+    pz = dz - s * axis[2]
+    cos_t = 1.0 / math.sqrt(1.0 + tan_half * tan_half)
+    return math.sqrt(px * px + py * py + pz * pz) * cos_t - s * tan_half * cos_t - radius > margin
+
+
+@njit(cache=True)
 def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
     """Per particle ``p_D`` (n,) and per particle and measurement ``log g(y_j | x_i) - log
     kappa`` (n, m), kappa = lambda_c p_c; -inf where p_D = 0 or y_j lies GATE standard
