@@ -15,6 +15,7 @@ from trackjam.estimation.lmb_kernels import (
     kernel_beyond_cone,
     kernel_log_means,
     kernel_mixture_log_weights,
+    kernel_seen_factors,
 )
 from trackjam.radio.antenna import cone_gain
 from trackjam.radio.measurement import h, wrap_angle
@@ -48,26 +49,46 @@ def test_association_factors_equal_numpy_twin_and_the_bernoulli_kernel(seed, m, 
 @given(st.integers(0, 2**32 - 1), st.integers(1, 50), st.integers(0, 4), st.floats(0.0, 0.6))
 def test_log_mean_and_mixture_kernels_equal_numpy_twins(seed, n, m, share_inf):
     """The compiled <f_c> and posterior weights against scipy's logsumexp over the factor matrix
-    [log(1 - p_D), log p_D + log g_j], -inf entries included (a particle outside the cone, a
-    measurement beyond the gate, a column with beta = 0)."""
+    [log(1 - p_D), log p_D + log g_j] of every particle (0 and -inf off the seen ones), -inf
+    entries included (a measurement beyond the gate, a column with beta = 0, p_D = 1)."""
     rng = np.random.default_rng(seed)
     log_w = rng.normal(0, 2, n)
     log_w -= logsumexp(log_w)
-    log_p_d = np.where(rng.random(n) < share_inf, -np.inf, rng.normal(-1, 1, n))
-    log_miss = np.where(rng.random(n) < share_inf / 4, -np.inf, rng.normal(-0.5, 0.5, n))
-    log_g = np.where(rng.random((n, m)) < share_inf, -np.inf, rng.normal(0, 5, (n, m)))
-    log_f = np.column_stack([log_miss, log_p_d[:, None] + log_g])
+    seen = np.flatnonzero(rng.random(n) >= share_inf)
+    k = len(seen)
+    log_p_d = rng.normal(-1, 1, k)
+    log_miss = np.where(rng.random(k) < share_inf / 4, -np.inf, rng.normal(-0.5, 0.5, k))
+    log_g = np.where(rng.random((k, m)) < share_inf, -np.inf, rng.normal(0, 5, (k, m)))
+    log_f = np.column_stack([np.zeros(n), np.full((n, m), -np.inf)])
+    log_f[seen] = np.column_stack([log_miss, log_p_d[:, None] + log_g])
     coef = np.where(rng.random(m + 1) < share_inf, -np.inf, rng.normal(0, 3, m + 1))
     with np.errstate(divide="ignore", invalid="ignore"):
-        np.testing.assert_allclose(kernel_log_means(log_w, log_miss, log_p_d, log_g),
+        np.testing.assert_allclose(kernel_log_means(log_w, seen, log_miss, log_p_d, log_g),
                                    logsumexp(log_w[:, None] + log_f, axis=0), rtol=1e-12, atol=1e-12)
         use = np.isfinite(coef)
         if not use.any() or not np.isfinite(log_f[:, use]).any():
             return
         twin = log_w + logsumexp(log_f[:, use] + coef[use], axis=1)
         twin -= logsumexp(twin)
-    np.testing.assert_allclose(kernel_mixture_log_weights(log_w, log_miss, log_p_d, log_g, coef), twin,
+    np.testing.assert_allclose(kernel_mixture_log_weights(log_w, seen, log_miss, log_p_d, log_g, coef), twin,
                                rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 4))
+def test_seen_factors_are_the_full_factors_at_the_particles_in_the_cone(seed, m):
+    """The compressed factors are the full ones (p_D > 0) at exactly the particles they list."""
+    rng = np.random.default_rng(seed)
+    X = np.hstack([U + rng.normal(0, 4, (300, 3)) + 4 * AX, rng.normal(0, 1, (300, 3))])
+    Z = np.array([h(X[rng.integers(300)], U) + rng.normal(0, 1, 3) * SIGMA for _ in range(m)]).reshape(-1, 3)
+    sc = scan(Z)
+    args = (X, sc.Z, U, sc.axis, sc.p_d_scale, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e, SIGMA, LOG_KAPPA)
+    seen, p_seen, g_seen = kernel_seen_factors(*args)
+    p_d, log_g = factors_twin(X, sc.Z, ANT.l_max)
+    np.testing.assert_array_equal(seen, np.flatnonzero(p_d > 0))
+    np.testing.assert_allclose(p_seen, p_d[seen], atol=1e-12)
+    np.testing.assert_array_equal(np.isfinite(g_seen), np.isfinite(log_g[seen]))
+    np.testing.assert_allclose(g_seen[np.isfinite(g_seen)], log_g[seen][np.isfinite(log_g[seen])], atol=1e-9)
 
 
 @settings(max_examples=200, deadline=None)

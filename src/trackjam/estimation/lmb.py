@@ -49,6 +49,7 @@ from trackjam.estimation.lmb_kernels import (
     kernel_beyond_cone,
     kernel_log_means,
     kernel_mixture_log_weights,
+    kernel_seen_factors,
 )
 from trackjam.radio.antenna import AntennaModel
 from trackjam.radio.measurement import clutter_density
@@ -116,11 +117,13 @@ class TrackEstimate:
 
 @dataclass(frozen=True)
 class Factors:
-    """Per track of one scan, per particle: ``log_miss`` (n,) log(1 - p_D), ``log_p_d`` (n,)
-    log p_D and ``log_g`` (n, m) log g(y_j | x) / kappa (the factor of column 1 + j is
-    log_p_d + log_g[:, j]); ``log_mean`` (m + 1,) the factors' means <f_c> over the track's
-    density; ``log_eta`` (m + 1,) the track's row of eta."""
+    """Per track of one scan: ``seen`` (k,) the particles with p_D > 0 (ascending), and at them
+    ``log_miss`` (k,) log(1 - p_D), ``log_p_d`` (k,) log p_D and ``log_g`` (k, m) log g(y_j |
+    x) / kappa (the factor of column 1 + j is log_p_d + log_g[:, j]); every other particle has
+    the factor 1 in column 0 and 0 in the others. ``log_mean`` (m + 1,) the factors' means <f_c>
+    over the track's density; ``log_eta`` (m + 1,) the track's row of eta."""
 
+    seen: np.ndarray
     log_miss: np.ndarray
     log_p_d: np.ndarray
     log_g: np.ndarray
@@ -138,25 +141,21 @@ def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_ka
     centre, radius = kernel_ball(X) if ball is None else ball
     if scan.p_d_scale <= 0.0 or kernel_beyond_cone(centre, radius, scan.u, scan.axis, ant.height, ant.tan_half,
                                                    CONE_MARGIN):
-        # what the kernel would return: p_D = 0 everywhere, so no measurement is the track's
-        p_d, log_g = np.zeros(len(X)), np.full((len(X), len(scan.Z)), -np.inf)
+        seen, p_d, log_g = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, len(scan.Z)))
     else:
-        p_d, log_g = kernel_association_factors(
+        seen, p_d, log_g = kernel_seen_factors(
             X, scan.Z, scan.u, scan.axis, scan.p_d_scale, ant.height, ant.tan_half, ant.r0, ant.n_e,
             np.asarray(noise_std, dtype=float), float(log_kappa),
         )
     with np.errstate(divide="ignore"):  # p_D = 1 leaves no miss
         log_miss = np.log1p(-np.minimum(p_d, 1.0))
-    seen = p_d > 0.0
-    # numpy's log takes a slow path on zeros: log 1 = 0 in their place, then -inf
-    log_p_d = np.log(np.where(seen, p_d, 1.0))
-    log_p_d[~seen] = -np.inf
-    log_mean = kernel_log_means(track.log_w, log_miss, log_p_d, log_g)
+    log_p_d = np.log(p_d)
+    log_mean = kernel_log_means(track.log_w, seen, log_miss, log_p_d, log_g)
     log_r = math.log(track.r) if track.r > 0.0 else -np.inf
     log_not = math.log1p(-track.r) if track.r < 1.0 else -np.inf
     log_eta = log_r + log_mean
     log_eta[0] = np.logaddexp(log_not, log_r + log_mean[0])
-    return Factors(log_miss, log_p_d, log_g, log_mean, log_eta)
+    return Factors(seen, log_miss, log_p_d, log_g, log_mean, log_eta)
 
 
 def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
@@ -175,7 +174,7 @@ def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
         return replace(track, r=0.0)
     usable = np.isfinite(log_coef) & np.isfinite(log_mean)
     coef = np.where(usable, log_coef - np.where(usable, log_mean, 0.0), -np.inf)
-    log_post = kernel_mixture_log_weights(track.log_w, f.log_miss, f.log_p_d, f.log_g, coef)
+    log_post = kernel_mixture_log_weights(track.log_w, f.seen, f.log_miss, f.log_p_d, f.log_g, coef)
     return replace(track, r=min(r_new, 1.0), log_w=log_post)
 
 

@@ -15,6 +15,13 @@ from trackjam.radio.antenna import kernel_cone_gain
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
+@njit(cache=True, inline="always")
+def _exp(d):
+    """exp(d), skipping the call at d = 0 (exp(0) = 1 exactly): the particles outside the cone
+    share one log-weight, which is often the largest, so most terms of their sums are exp(0)."""
+    return 1.0 if d == 0.0 else math.exp(d)
+
+
 @njit(cache=True)
 def kernel_ball(X):
     """Centre (3,) and radius [m] of a ball holding every particle's position: the mean and the
@@ -55,24 +62,28 @@ def kernel_beyond_cone(centre, radius, u, axis, height, tan_half, margin):
 
 
 @njit(cache=True)
-def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
-    """Per particle ``p_D`` (n,) and per particle and measurement ``log g(y_j | x_i) - log
-    kappa`` (n, m), kappa = lambda_c p_c; -inf where p_D = 0 or y_j lies GATE standard
-    deviations or more away (the gating of ``kernel_update_factors``, whose log L_i is
-    log(1 - p_D + p_D sum_j exp(.)) of these)."""
+def kernel_seen_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
+    """The particles with p_D > 0 (``seen`` (k,), indices ascending), their ``p_D`` (k,) and, per
+    measurement, ``log g(y_j | x_i) - log kappa`` (k, m), kappa = lambda_c p_c; -inf where y_j
+    lies GATE standard deviations or more away (the gating of ``kernel_update_factors``, whose
+    log L_i is log(1 - p_D + p_D sum_j exp(.)) of these). Particles outside the cone (most of a
+    track's, for most scans) are only counted out: nothing is written for them."""
     n = X.shape[0]
     m = Z.shape[0]
+    seen = np.empty(n, dtype=np.int64)
     p_d = np.empty(n)
-    out = np.full((n, m), -np.inf)
+    out = np.empty((n, m))
     s0, s1, s2 = noise_std[0], noise_std[1], noise_std[2]
     c_max = -1.5 * _LOG_2PI - math.log(s0) - math.log(s1) - math.log(s2) - log_kappa
+    k = 0
     for i in range(n):
         pd = p_d_scale * kernel_cone_gain(
             X[i, 0], X[i, 1], X[i, 2], u[0], u[1], u[2], axis[0], axis[1], axis[2], height, tan_half, r0, n_e
         )
-        p_d[i] = pd
         if pd <= 0.0:
             continue
+        seen[k] = i
+        p_d[k] = pd
         dx = X[i, 0] - u[0]
         dy = X[i, 1] - u[1]
         dz = X[i, 2] - u[2]
@@ -83,6 +94,7 @@ def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n
         az = 0.0
         inc = 0.0
         for j in range(m):
+            out[k, j] = -np.inf
             e0 = (Z[j, 0] - rho) / s0
             if e0 > GATE or e0 < -GATE:
                 continue
@@ -94,36 +106,62 @@ def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n
             e2 = _wrap(Z[j, 2] - inc) / s2
             d2 = e0 * e0 + e1 * e1 + e2 * e2
             if d2 < GATE * GATE:
-                out[i, j] = c_max - 0.5 * d2
+                out[k, j] = c_max - 0.5 * d2
+        k += 1
+    return seen[:k], p_d[:k], out[:k]
+
+
+@njit(cache=True)
+def kernel_association_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
+    """Per particle ``p_D`` (n,) and per particle and measurement ``log g(y_j | x_i) - log
+    kappa`` (n, m): :func:`kernel_seen_factors` spread over every particle (p_D = 0 and -inf
+    outside the cone)."""
+    seen, p_seen, g_seen = kernel_seen_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std,
+                                               log_kappa)
+    p_d = np.zeros(X.shape[0])
+    out = np.full((X.shape[0], Z.shape[0]), -np.inf)
+    for k in range(seen.shape[0]):
+        p_d[seen[k]] = p_seen[k]
+        out[seen[k]] = g_seen[k]
     return p_d, out
 
 
 @njit(cache=True)
-def kernel_log_means(log_w, log_miss, log_p_d, log_g):
-    """log <f_c> = log sum_i w_i f_c(x_i) per column c of a track's factors: f_0 = 1 - p_D
-    (``log_miss`` (n,)), f_{1+j} = p_D g(y_j | x) / kappa (``log_p_d`` (n,) + ``log_g`` (n, m));
-    a particle outside the cone (p_D = 0) adds to column 0 only."""
-    n, m = log_g.shape
+def kernel_log_means(log_w, seen, log_miss, log_p_d, log_g):
+    """log <f_c> = log sum_i w_i f_c(x_i) per column c of a track's factors at the particles
+    ``seen`` (ascending) with p_D > 0: f_0 = 1 - p_D (``log_miss`` (k,)), f_{1+j} = p_D g(y_j |
+    x) / kappa (``log_p_d`` (k,) + ``log_g`` (k, m)); every other particle has f_0 = 1 and adds
+    to column 0 only."""
+    n = log_w.shape[0]
+    k, m = log_g.shape
     mx = np.full(m + 1, -np.inf)
+    s = 0
     for i in range(n):
-        v = log_w[i] + log_miss[i]
+        if s < k and seen[s] == i:
+            v = log_w[i] + log_miss[s]
+            for j in range(m):
+                g = log_w[i] + (log_p_d[s] + log_g[s, j])
+                if g > mx[1 + j]:
+                    mx[1 + j] = g
+            s += 1
+        else:
+            v = log_w[i]
         if v > mx[0]:
             mx[0] = v
-        if log_p_d[i] > -np.inf:
-            for j in range(m):
-                v = log_w[i] + (log_p_d[i] + log_g[i, j])
-                if v > mx[1 + j]:
-                    mx[1 + j] = v
     acc = np.zeros(m + 1)
+    s = 0
     for i in range(n):
-        v = log_w[i] + log_miss[i]
-        if v > -np.inf:
-            acc[0] += math.exp(v - mx[0])
-        if log_p_d[i] > -np.inf:
+        if s < k and seen[s] == i:
+            v = log_w[i] + log_miss[s]
             for j in range(m):
-                v = log_w[i] + (log_p_d[i] + log_g[i, j])
-                if v > -np.inf:
-                    acc[1 + j] += math.exp(v - mx[1 + j])
+                g = log_w[i] + (log_p_d[s] + log_g[s, j])
+                if g > -np.inf:
+                    acc[1 + j] += math.exp(g - mx[1 + j])
+            s += 1
+        else:
+            v = log_w[i]
+        if v > -np.inf:
+            acc[0] += _exp(v - mx[0])
     out = np.empty(m + 1)
     for c in range(m + 1):
         out[c] = -np.inf if mx[c] == -np.inf else mx[c] + math.log(acc[c])
@@ -131,40 +169,41 @@ def kernel_log_means(log_w, log_miss, log_p_d, log_g):
 
 
 @njit(cache=True)
-def kernel_mixture_log_weights(log_w, log_miss, log_p_d, log_g, coef):
+def kernel_mixture_log_weights(log_w, seen, log_miss, log_p_d, log_g, coef):
     """Normalised log of w_i sum_c f_c(x_i) exp(coef[c]) over the columns with a finite
     ``coef`` (the factors f_c of :func:`kernel_log_means`): the posterior weights of a track's
     particles."""
-    n, m = log_g.shape
+    n = log_w.shape[0]
+    k, m = log_g.shape
     out = np.empty(n)
+    s = 0
     for i in range(n):
+        if not (s < k and seen[s] == i):  # f_0 = 1 only: the sum is exp(coef[0])
+            out[i] = log_w[i] + coef[0]
+            continue
         mx = -np.inf
         if coef[0] > -np.inf:
-            mx = log_miss[i] + coef[0]
-        seen = log_p_d[i] > -np.inf
-        if seen:
-            for j in range(m):
-                if coef[1 + j] > -np.inf:
-                    v = (log_p_d[i] + log_g[i, j]) + coef[1 + j]
-                    if v > mx:
-                        mx = v
-        if mx == -np.inf:
-            out[i] = -np.inf
-            continue
-        if not seen:  # only column 0: the sum is exp(0) = 1
-            out[i] = log_w[i] + mx
-            continue
-        acc = 0.0
-        if coef[0] > -np.inf:
-            v = log_miss[i] + coef[0]
-            if v > -np.inf:
-                acc += math.exp(v - mx)
+            mx = log_miss[s] + coef[0]
         for j in range(m):
             if coef[1 + j] > -np.inf:
-                v = (log_p_d[i] + log_g[i, j]) + coef[1 + j]
+                v = (log_p_d[s] + log_g[s, j]) + coef[1 + j]
+                if v > mx:
+                    mx = v
+        if mx == -np.inf:
+            out[i] = -np.inf
+        else:
+            acc = 0.0
+            if coef[0] > -np.inf:
+                v = log_miss[s] + coef[0]
                 if v > -np.inf:
                     acc += math.exp(v - mx)
-        out[i] = log_w[i] + mx + math.log(acc)
+            for j in range(m):
+                if coef[1 + j] > -np.inf:
+                    v = (log_p_d[s] + log_g[s, j]) + coef[1 + j]
+                    if v > -np.inf:
+                        acc += math.exp(v - mx)
+            out[i] = log_w[i] + mx + math.log(acc)
+        s += 1
     mx = -np.inf
     for i in range(n):
         if out[i] > mx:
@@ -172,7 +211,7 @@ def kernel_mixture_log_weights(log_w, log_miss, log_p_d, log_g, coef):
     acc = 0.0
     for i in range(n):
         if out[i] > -np.inf:
-            acc += math.exp(out[i] - mx)
+            acc += _exp(out[i] - mx)
     total = mx + math.log(acc)
     for i in range(n):
         out[i] -= total
