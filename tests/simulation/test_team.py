@@ -104,6 +104,58 @@ def test_delayed_messages_arrive_exactly_late():
     assert stamps == [[], [], [1], [2], [3]]
 
 
+def test_a_late_message_waits_for_its_own_round_of_the_step():
+    """A posterior a step late arrives in the posterior round of the next step, although the
+    prediction round of that step comes first (it used to be dropped there)."""
+    ex = Exchange(2, settings(delay_steps=1), np.random.default_rng(0))
+    got = []
+    for t in range(1, 4):
+        ex.send(t, "prediction", [Message(0, "prediction", t), Message(1, "prediction", t)])
+        ex.send(t, "plan", [Message(0, "plan", t), Message(1, "plan", t)])
+        boxes = ex.send(t, "posterior", [Message(0, "posterior", t), Message(1, "posterior", t)])
+        got.append([(m.kind, m.stamp) for m in boxes[1] if m.sender == 0])
+    assert got == [[], [("posterior", 1)], [("posterior", 2)]]
+
+
+def test_a_late_posterior_is_coasted_to_now_by_eq_1():
+    from trackjam.estimation.bernoulli import Estimate
+    from trackjam.simulation.team import coasted_posteriors
+    from trackjam.world.motion import cv_matrices
+
+    x = np.array([1.0, 2.0, 3.0, 0.5, -1.0, 2.0])
+    P = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.3])
+    late = [Message(1, "posterior", 3, estimate=Estimate(0.8, x, P), prior_existence=0.7),
+            Message(1, "posterior", 2, estimate=Estimate(0.6, x, P)),
+            Message(2, "posterior", 4, estimate=Estimate(0.3, None, None))]
+    out = coasted_posteriors(late, 5, accel_var=0.5)
+    assert [(m.sender, m.stamp) for m in out] == [(1, 3), (2, 4)]  # each sender's latest only
+    Phi, Gamma = cv_matrices(1.0)
+    Q = 0.5 * Gamma @ Gamma.T
+    mean, cov = Phi @ Phi @ x, Phi @ (Phi @ P @ Phi.T + Q) @ Phi.T + Q  # two steps by hand
+    np.testing.assert_allclose(out[0].estimate.mean, mean)
+    np.testing.assert_allclose(out[0].estimate.cov, cov)
+    assert out[0].estimate.existence == 0.8 and out[0].prior_existence == 0.7
+    assert out[1].estimate.mean is None and out[1].estimate.existence == 0.3
+
+
+@pytest.mark.parametrize("stale, fused", [("drop", 1), ("coast", 3)])
+def test_with_a_delay_each_agent_fuses_its_teammates_late_posteriors_only_when_coasting(monkeypatch, stale, fused):
+    import trackjam.simulation.team as team
+
+    sizes = []
+    fuse = team.fuse
+
+    def spy(estimates, *args, **kwargs):
+        sizes.append(len(estimates))
+        return fuse(estimates, *args, **kwargs)
+
+    monkeypatch.setattr(team, "fuse", spy)
+    run("comms.delay_steps=1", f"comms.stale={stale}")
+    # step 1: nothing has arrived yet; from step 2 on, each agent holds its own fresh posterior
+    # and, when coasting, its two teammates' posteriors of the step before
+    assert sizes[:3] == [1, 1, 1] and set(sizes[3:]) == {fused}
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_a_guarded_teammate_is_protected_by_the_exact_plan(seed):
     """A teammate heard from only long ago is a receiver with no moves and no say in Xi: the

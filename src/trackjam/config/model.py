@@ -456,6 +456,11 @@ class Comms(_Model):
 
     loss: Prob = Field(0.0, description="probability that each message from one agent to another is lost")
     delay_steps: int = Field(0, ge=0, le=1000, description="steps a message takes to arrive")
+    stale: Literal["drop", "coast"] = Field(
+        "coast",
+        description="a teammate's posterior that arrives late: `drop` (only its position is kept) or `coast` (ours: "
+        "its estimate is predicted by Eq. (1) to the current step and fused with the fresh ones)",
+    )
     failures: list[Failure] = Field(default_factory=list, description="agents that fail at a given step")
 
 

@@ -188,7 +188,7 @@ def build(s: Scenario) -> Components:
         team=TeamSettings(
             existence_rule=s.fusion.existence, feedback=s.fusion.feedback, share=s.fusion.share,
             searching=c.fallback == "search", accel_var=s.filter_accel_var,
-            loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps),
+            loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps), stale=s.comms.stale,
             failures=tuple((f.agent, f.step, f.mode) for f in s.comms.failures),
             aim=AimSettings(lead=c.lead, horizon=c.horizon, reach=max(s.agents.radial_steps)),
             search_reseed=s.fusion.search_reseed,

@@ -16,14 +16,16 @@ Faults (ours, ``comms``): a message to another agent is lost with probability ``
 arrives ``delay_steps`` late; an agent can lose its publisher, its whole channel, or break down.
 An agent never plans with a teammate it did not hear from this step as if it were fresh: such a
 teammate is left out of the joint plan and only *guarded* at its last known position (a
-receiver that Eq. (13) protects, with no moves and no say in Eq. (12)'s Xi). With every message
-delivered, every agent holds the same information and the team acts as one.
+receiver that Eq. (13) protects, with no moves and no say in Eq. (12)'s Xi). A teammate's late
+posterior is predicted by Eq. (1) to the current step and fused with the fresh ones
+(``comms.stale: coast``; ``drop`` ignores it). With every message delivered, every agent holds
+the same information and the team acts as one.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -32,10 +34,11 @@ from trackjam.control.fallback import fallback_levels
 from trackjam.control.planning import PlanSettings, pooled_belief
 from trackjam.control.pursuit import AimSettings, pursuit_aim, search_aim
 from trackjam.control.problem import build_problem
-from trackjam.estimation.bernoulli import Scan
+from trackjam.estimation.bernoulli import Estimate, Scan
 from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.agent import Agent, Message
+from trackjam.world.motion import cv_coast
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,7 @@ class TeamSettings:
     accel_var: float  # the filters' Sigma_v scale, used to coast a lost track
     loss: float = 0.0  # comms.loss
     delay_steps: int = 0  # comms.delay_steps
+    stale: str = "coast"  # comms.stale: "drop" | "coast" a teammate's late posterior
     failures: tuple[tuple[int, int, str], ...] = ()  # comms.failures as (agent, step, mode)
     aim: AimSettings = AimSettings()  # control.lead, control.horizon: the aim ahead of x_bar
     search_reseed: str = "always"  # fusion.search_reseed: "always" | "evidence"
@@ -99,7 +103,7 @@ class Exchange:
             if arrival == t and k == kind and r != m.sender:
                 if not self.failed(r, t, ("channel", "breakdown")):
                     inboxes[r].append(m)
-            elif arrival > t:
+            elif arrival > t or (arrival == t and k != kind):  # it waits for its own round of the step
                 keep.append((arrival, k, r, m))
         self.pending = keep
         return [sorted(box, key=lambda m: (m.sender, m.stamp)) for box in inboxes]
@@ -262,6 +266,8 @@ class Team:
         for j in self.working():
             a = self.agents[j]
             box = [m for m in inboxes[j] if m.stamp == self.t]
+            if s.stale == "coast":
+                box += coasted_posteriors([m for m in inboxes[j] if m.stamp < self.t], self.t, s.accel_var)
             key = tuple(id(m) for m in box)
             if key not in fused_by_inbox:
                 hidden = box and box[0].visibility is not None
@@ -297,6 +303,25 @@ class Team:
             report = fused if report is None else report
             self.agents[j].remember(fused.existence, fused.mean, fused.cov)
         return report
+
+
+def coasted_posteriors(late: list[Message], t: int, accel_var: float) -> list[Message]:
+    """``comms.stale: coast`` (ours): each sender's latest late posterior, its estimate predicted
+    by Eq. (1) from its step to ``t`` (existence, and the predicted existence it started from,
+    as sent); a posterior of a step no newer than one already held is not used."""
+    latest: dict[int, Message] = {}
+    for m in late:
+        if m.sender not in latest or latest[m.sender].stamp < m.stamp:
+            latest[m.sender] = m
+    out = []
+    for sender in sorted(latest):
+        m = latest[sender]
+        est = m.estimate
+        if est.mean is not None:
+            mean, cov = cv_coast(est.mean, est.cov, accel_var, t - m.stamp)
+            est = Estimate(est.existence, mean, cov)
+        out.append(replace(m, estimate=est))
+    return out
 
 
 def own_scan_raised(index: int, posteriors: list[Message]) -> bool:
