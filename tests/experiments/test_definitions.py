@@ -117,9 +117,10 @@ def test_comms_sweeps_loss_delay_and_failures_with_aimed_antennas():
     ss = _scenarios("comms")
     assert len(ss) == len(COMMS_VARIANTS)
     assert [s.comms.loss for s in ss[:5]] == [0.0, 0.1, 0.3, 0.5, 1.0]
-    assert ss[5].comms.delay_steps == 1 and ss[5].comms.loss == 0
-    assert [(f.agent, f.step, f.mode) for f in ss[6].comms.failures] == [(0, 10, "publisher")]
-    assert [(f.agent, f.step, f.mode) for f in ss[7].comms.failures] == [(0, 10, "breakdown")]
+    assert ss[5].comms.delay_steps == 1 and ss[5].comms.loss == 0 and ss[5].comms.stale == "coast"
+    assert ss[6].comms.delay_steps == 1 and ss[6].comms.stale == "drop"
+    assert [(f.agent, f.step, f.mode) for f in ss[7].comms.failures] == [(0, 10, "publisher")]
+    assert [(f.agent, f.step, f.mode) for f in ss[8].comms.failures] == [(0, 10, "breakdown")]
     assert all(s.antenna.pointing == "aim" and s.control.solver == "exact" for s in ss)
 
 

@@ -141,6 +141,7 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
 COMMS_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     *((f"loss {p:g}", {"comms.loss": p}) for p in (0.0, 0.1, 0.3, 0.5, 1.0)),
     ("delay 1 step", {"comms.delay_steps": 1}),
+    ("delay 1 step, late posteriors dropped", {"comms.delay_steps": 1, "comms.stale": "drop"}),
     ("agent 0's publisher fails at step 10", {"comms.failures": [{"agent": 0, "step": 10, "mode": "publisher"}]}),
     ("agent 0 breaks down at step 10", {"comms.failures": [{"agent": 0, "step": 10, "mode": "breakdown"}]}),
 )
