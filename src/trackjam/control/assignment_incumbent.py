@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from trackjam.control.assignment_grasp import _value
+from trackjam.control.assignment_grasp import _feasible
 from trackjam.control.grasp import _sample_xi
 
 
@@ -33,15 +33,8 @@ def _placed_value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, targ
     K = pz.shape[0]
     L = levels_w.shape[0]
     zero = pz.shape[2] - 1
-    if constrained:
-        for i in range(N):
-            vi = target[i] * C + pair[i] // L
-            r = 0.0
-            for j in range(N):
-                if j != i:
-                    r += levels_w[pair[j] % L] * gain[i, j, vi, target[j] * C + pair[j] // L]
-            if r >= delta:
-                return -np.inf
+    if constrained and not _feasible(gain, levels_w, delta, C, pair, target, L):
+        return -np.inf
     acc = 0.0 if kind == 0 else np.inf
     for k in range(K):
         m = 0
@@ -57,55 +50,53 @@ def _placed_value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, targ
 
 
 @njit(cache=True)
+def _best_choice(pz, gain, levels_w, delta, n, kind, constrained, C, n_cand, pair, target, placed, kk, p, q, i,
+                 best):
+    """Agent i's first choice (target, then candidate, then level) of value above ``best``, the
+    others fixed; it is left in ``pair[i]``, ``target[i]`` (unchanged when none is) and its
+    value returned."""
+    L = levels_w.shape[0]
+    bp = pair[i]
+    bt = target[i]
+    for k in range(pz.shape[0]):
+        for c in range(n_cand[i]):
+            for lv in range(L):
+                pair[i] = c * L + lv
+                target[i] = k
+                v = _placed_value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, target, placed, kk, p, q)
+                if v > best:
+                    best = v
+                    bp = c * L + lv
+                    bt = k
+    pair[i] = bp
+    target[i] = bt
+    return best
+
+
+@njit(cache=True)
 def kernel_incumbent(pz, gain, levels_w, delta, n, kind, constrained, n_cand, order, pair, target):
     """Construction in ``order``, then ascent (the module docstring); ``gain`` and the plan in
     agent order, ``pair`` (c * L + l) and ``target`` (N,) the start on entry and the result on
     return. Returns the plan's team objective (-inf: infeasible under Eq. 13)."""
     N = n_cand.shape[0]
-    K = pz.shape[0]
-    L = levels_w.shape[0]
-    C = gain.shape[2] // K
+    C = gain.shape[2] // pz.shape[0]
     kk = np.empty(N, dtype=np.int64)
     p = np.empty(N)
     q = np.empty(n + 1)
     placed = np.zeros(N, dtype=np.bool_)
     for d in range(N):
-        i = order[d]
-        placed[i] = True
-        best = -np.inf
-        bp = pair[i]
-        bt = target[i]
-        for k in range(K):
-            for c in range(n_cand[i]):
-                for lv in range(L):
-                    pair[i] = c * L + lv
-                    target[i] = k
-                    v = _placed_value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, target, placed,
-                                      kk, p, q)
-                    if v > best:
-                        best = v
-                        bp = c * L + lv
-                        bt = k
-        pair[i] = bp
-        target[i] = bt
-    best = _value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, target, kk, p, q)
+        placed[order[d]] = True
+        _best_choice(pz, gain, levels_w, delta, n, kind, constrained, C, n_cand, pair, target, placed, kk, p, q,
+                     order[d], -np.inf)
+    # every agent placed: the value is the team objective itself (kernel_targets_value's sums)
+    best = _placed_value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, target, placed, kk, p, q)
     changed = True
     while changed:
         changed = False
         for i in range(N):
-            bp = pair[i]
-            bt = target[i]
-            for k in range(K):
-                for c in range(n_cand[i]):
-                    for lv in range(L):
-                        pair[i] = c * L + lv
-                        target[i] = k
-                        v = _value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, target, kk, p, q)
-                        if v > best:
-                            best = v
-                            bp = c * L + lv
-                            bt = k
-                            changed = True
-            pair[i] = bp
-            target[i] = bt
+            v = _best_choice(pz, gain, levels_w, delta, n, kind, constrained, C, n_cand, pair, target, placed, kk,
+                             p, q, i, best)
+            if v > best:
+                best = v
+                changed = True
     return best
