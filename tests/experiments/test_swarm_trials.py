@@ -149,7 +149,7 @@ def test_other_overrides_reach_every_cell():
 
 def test_a_cell_the_scenario_cannot_take_is_one_line():
     with pytest.raises(ConfigError, match="at_least") as err:
-        _scenarios("1x1")
+        _scenarios("1x1", overrides=["control.at_least=2"])
     assert "\n" not in str(err.value)
 
 
