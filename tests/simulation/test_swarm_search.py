@@ -190,3 +190,21 @@ def test_bad_values_of_the_options_exit_2_with_one_line(tmp_path, key, value):
     lines = [line for line in r.stderr.splitlines() if line.strip()]
     assert r.returncode == 2 and len(lines) == 1 and key in lines[0] and "Traceback" not in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_the_search_changes_nothing_until_a_track_is_lost():
+    """Runs with hover and with search are the same step for step while the search has no aim
+    to add (the memory only ever adds aims)."""
+    hover, search = SwarmSimulation(two("steps=12")), SwarmSimulation(two("steps=12", "control.fallback=search"))
+    same, added = 0, False
+    while not hover.done and not added:
+        r, q = hover.step(), search.step()
+        if q.step["aims"] != r.step["aims"]:
+            added = q.step["aims"] > r.step["aims"] and "search" in list(q.agents["mode"])
+            assert added
+            continue
+        for k in ("pos", "level_index", "point", "serves", "detections"):
+            np.testing.assert_array_equal(np.asarray(r.agents[k]), np.asarray(q.agents[k]), err_msg=k)
+        assert r.tracks["track"] == q.tracks["track"]
+        same += 1
+    assert same >= 2 and added  # on this seed a track is lost at step 4 and searched for
