@@ -176,10 +176,13 @@ def kernel_mixture_log_weights(log_w, seen, log_miss, log_p_d, log_g, coef):
     n = log_w.shape[0]
     k, m = log_g.shape
     out = np.empty(n)
+    top = -np.inf  # the largest of out, for the normalisation
     s = 0
     for i in range(n):
         if not (s < k and seen[s] == i):  # f_0 = 1 only: the sum is exp(coef[0])
             out[i] = log_w[i] + coef[0]
+            if out[i] > top:
+                top = out[i]
             continue
         mx = -np.inf
         if coef[0] > -np.inf:
@@ -203,16 +206,14 @@ def kernel_mixture_log_weights(log_w, seen, log_miss, log_p_d, log_g, coef):
                     if v > -np.inf:
                         acc += math.exp(v - mx)
             out[i] = log_w[i] + mx + math.log(acc)
+            if out[i] > top:
+                top = out[i]
         s += 1
-    mx = -np.inf
-    for i in range(n):
-        if out[i] > mx:
-            mx = out[i]
     acc = 0.0
     for i in range(n):
         if out[i] > -np.inf:
-            acc += _exp(out[i] - mx)
-    total = mx + math.log(acc)
+            acc += _exp(out[i] - top)
+    total = top + math.log(acc)
     for i in range(n):
         out[i] -= total
     return out
