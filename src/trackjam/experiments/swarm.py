@@ -1,5 +1,6 @@
-"""The swarm experiment's trials (ours, issue 12): K targets x N agents on the swarm engine, with
-the targets' jamming response on.
+"""The swarm experiment (ours, issue 12): K targets x N agents on the swarm engine, with the
+targets' jamming response on: its grid, its trial draw, its configurations and paired
+comparisons, and the record a trial reduces to.
 
 Trial k of cell (K, N) (the README's "The swarm experiment" and docs/model.md fix the choices):
 
