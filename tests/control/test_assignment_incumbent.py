@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from trackjam.control.assignment_exact import AssignmentSearch, agent_order, solve_assignment_exact
 from trackjam.control.assignment_incumbent import kernel_incumbent
 from trackjam.control.assignment_problem import assignment_value, target_xi
+from trackjam.control.exact import solve_exact
 from trackjam.control.objective import received_interference
 
 from control_instances import small_displacements
@@ -90,3 +91,20 @@ def test_search_answer_is_the_first_optimum_whatever_the_incumbent(antenna, obje
         silent = AssignmentSearch(P, incumbent=False)
         silent.run()
         assert sol.nodes <= silent.nodes
+
+
+@pytest.mark.parametrize("n_agents,n_targets", [(3, 1), (3, 2), (2, 3), (3, 3)])
+def test_coverage_bound_keeps_the_first_optimum(antenna, n_agents, n_targets):
+    """n = 1 with `sum` adds the coverage bound (each agent counted once): the search still
+    returns the enumeration's first optimum, and with one target today's one-target plan."""
+    rng = np.random.default_rng(40 + 10 * n_agents + n_targets)
+    for trial in range(5):
+        P = random_assignment(rng, antenna, n_agents, n_targets, 1, trial % 2 == 0, "sum", spread=4.0 + 2 * trial)
+        value, cand, level, target = enumerate_assignment(P)
+        sol = solve_assignment_exact(P)
+        assert sol.objective == value and sol.optimal
+        assert np.array_equal(slots(P, sol), cand) and np.array_equal(sol.level, level)
+        assert np.array_equal(sol.target, target)
+        if n_targets == 1:
+            today = solve_exact(P.targets[0])
+            assert np.array_equal(sol.move, today.move) and np.array_equal(sol.level, today.level)

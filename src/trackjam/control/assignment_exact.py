@@ -10,7 +10,7 @@ Each agent's choices form K blocks, one per target, in target order; within bloc
 (candidate, level) pairs come in the one-target order (p_D at x_bar_k descending, then lower
 level, then lower move: :func:`pair_order`). The result is the first optimum in this order
 (improvements must be strict; the start is every agent hovering at level 0 serving target 0);
-with K = 1 this is exactly the one-target search, so it returns its plan. Before the search,
+with K = 1 the order is the one-target search's, so it returns its plan. Before the search,
 :mod:`assignment_incumbent` builds a feasible plan of value v, and the search starts with that
 plan as its incumbent at the value v - 1e-9 max(1, |v|): it prunes whatever cannot beat v from
 the first node on, while the first optimum in the order, worth at least v, is still reached and
@@ -27,6 +27,13 @@ is the best team objective over counts (a_1..a_K) summing to the number of unpla
 small dynamic programme over targets. For agent d itself serving k with p_D = x, U_k is
 A + B x (A = P(at least t others detect), B = P(exactly t - 1 do)), so the bound rises with x:
 once a pair of block k is cut, the rest of block k is too.
+
+That bound lets an unplaced agent count for every target at once. For ``sum`` with n = 1, where
+Xi_k = 1 - M_k prod(1 - p) is a coverage (M_k the placed servers' miss product), the union bound
+1 - M prod(1 - p_i) <= 1 - M + M sum_i p_i counts each agent once: the objective is at most
+sum_k (1 - M_k) + M_k x + sum_{j unplaced} max_k M_k b_jk, which also rises with x, and the
+search uses the smaller of the two (plus 1e-12 against rounding). On swarm-3 with n = 1 the
+hardest steps (K = 4 aims, N = 5) had a gap of 0.95 between the first bound and the optimum.
 
 The tests hold the kernel to a plain-numpy enumeration of every choice in this order.
 """
@@ -47,6 +54,9 @@ from trackjam.control.assignment_problem import (
 )
 from trackjam.control.exact import BranchAndBound, _first_admissible, _pair_row, pair_order
 from trackjam.control.objective import kernel_feasible
+
+
+COVER_SLACK = 1e-12  # added to the coverage bound: its products are rounded unlike the objective's recursion
 
 
 @njit(cache=True)
@@ -76,15 +86,32 @@ def _add(q, n, x):
 
 
 @njit(cache=True)
-def _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R):
+def _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R, H):
     """The bound's tables of depth d: for every target k and count a of unplaced agents sent to
     it, ``A[d, k, a] + B[d, k, a] x`` bounds Xi_k with agent d at p_D x also serving k, and
-    ``R[d, k, r]`` is the best combination of the other targets' U with r unplaced agents."""
+    ``R[d, k, r]`` is the best combination of the other targets' U with r unplaced agents. For
+    ``sum`` with n = 1, ``H[d, k]`` is the placed agents' miss product on target k and ``H[d,
+    K]`` the coverage bound without agent d (the module docstring)."""
     N, K = bptr.shape[1], bptr.shape[2]
     u = N - 1 - d
     q = np.empty(n + 1)
     b = np.empty(N)
     W = np.full((K, N), -np.inf)  # U_k(a) without agent d
+    if kind == 0 and n == 1:
+        H[d, :K] = 1.0
+        for j in range(d):
+            H[d, tg[j]] *= 1.0 - pp[j]
+        cover = 0.0
+        for k in range(K):
+            cover += 1.0 - H[d, k]
+        for j in range(d + 1, N):
+            gain = 0.0
+            for k in range(K):
+                r = bptr[d, j, k]
+                if r < (k + 1) * blk[j]:
+                    gain = max(gain, H[d, k] * ps[j, r])
+            cover += gain
+        H[d, K] = cover
     for k in range(K):
         q[0] = 1.0
         q[1:] = 0.0
@@ -133,7 +160,7 @@ def _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R):
 
 
 @njit(cache=True)
-def kernel_pair_bound(d, k, x, kind, A, B, R, n_agents):
+def kernel_pair_bound(d, k, x, kind, n, A, B, R, H, n_agents):
     """Bound of every completion with agent d serving target k at p_D ``x``."""
     u = n_agents - 1 - d
     out = -np.inf
@@ -141,13 +168,16 @@ def kernel_pair_bound(d, k, x, kind, A, B, R, n_agents):
         if A[d, k, a] == -np.inf:
             break  # fewer than a agents can serve k
         out = max(out, _comb(kind, A[d, k, a] + B[d, k, a] * x, R[d, k, u - a]))
+    if kind == 0 and n == 1:
+        K = H.shape[1] - 1
+        out = min(out, H[d, K] + H[d, k] * x + COVER_SLACK)
     return out
 
 
 @njit(cache=True)
 def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent, ps, rank_c, rank_l,
                          rank_pair, blk, n_pairs, rows, have, c, lv, rank, tg, pp, pair, recv, bptr, cur,
-                         A, B, R, best_pair, best_target, state, best_value, max_nodes):
+                         A, B, R, H, best_pair, best_target, state, best_value, max_nodes):
     """Maximise the team objective subject to Eq. (13) (when ``constrained``), resumably.
 
     Depth d places agent ``agent[d]``: ``gain`` and the rank tables are in placing order, ``pz``
@@ -169,7 +199,7 @@ def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent,
     best = best_value[0]
     stop = nodes + max_nodes
     if nodes == 0 and d == 0:
-        _tables(0, n, kind, ps, blk, tg, pp, bptr, A, B, R)
+        _tables(0, n, kind, ps, blk, tg, pp, bptr, A, B, R, H)
     while d >= 0:
         descended = False
         while cur[d] < n_pairs[d]:
@@ -189,7 +219,7 @@ def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent,
                 continue
             cur[d] = r + 1
             nodes += 1
-            if kernel_pair_bound(d, k, ps[d, r], kind, A, B, R, N) <= best:
+            if kernel_pair_bound(d, k, ps[d, r], kind, n, A, B, R, H, N) <= best:
                 cur[d] = end  # no later pair of this block does better
                 continue
             c[d] = rank_c[d, r]
@@ -236,7 +266,7 @@ def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent,
                 continue
             d += 1
             cur[d] = 0
-            _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R)
+            _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R, H)
             descended = True
             break
         if not descended:
@@ -322,6 +352,7 @@ class AssignmentSearch:
         self.A = np.zeros((N, K, N))
         self.B = np.zeros((N, K, N))
         self.R = np.zeros((N, K, N))
+        self.H = np.zeros((N, K + 1))
         self.best_pair = np.zeros(N, dtype=np.int64)
         self.best_target = np.zeros(N, dtype=np.int64)
         self.state = np.zeros(2, dtype=np.int64)
@@ -355,7 +386,7 @@ class AssignmentSearch:
                 P.pz, self.gain, P.levels_w, P.delta_w, P.at_least, P.kind, P.constraints, self.agent, self.ps,
                 self.rank_c, self.rank_l, self.rank_pair, self.blk, self.n_pairs, self.rows, self.have,
                 self.c, self.lv, self.rank, self.tg, self.pp, self.pair, self.recv, self.bptr, self.cur,
-                self.A, self.B, self.R, self.best_pair, self.best_target, self.state, self.best_value,
+                self.A, self.B, self.R, self.H, self.best_pair, self.best_target, self.state, self.best_value,
                 int(max_nodes),
             ))
         return self.finished
@@ -379,7 +410,8 @@ class AssignmentSearch:
                 r = max(r, int(self.bptr[e, e, k]))
                 if r < end:
                     out = max(out, float(kernel_pair_bound(e, k, self.ps[e, r], self.problem.kind,
-                                                           self.A, self.B, self.R, N)))
+                                                           self.problem.at_least, self.A, self.B, self.R,
+                                                           self.H, N)))
                 r = end
         return out
 
