@@ -2,7 +2,6 @@
 output tables document exactly it."""
 
 import re
-from pathlib import Path
 
 import numpy as np
 
@@ -10,19 +9,7 @@ from trackjam.config import load_scenario
 from trackjam.simulation.loop import simulate
 from trackjam.simulation.schema import AGENTS, MEASUREMENTS, STEPS
 
-README = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-
-
-def first_column_names(heading: str) -> set[str]:
-    part = README.split(heading, 1)[1]
-    rows = [line for line in part.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
-    names = set()
-    for row in rows:
-        for span in re.findall(r"`([^`]+)`", row.split(" | ")[0]):
-            names |= {span[:-5] + k for k in "xyz"} if span.endswith("_x/y/z") else (
-                set("xyz") if span == "x/y/z" else {span})
-    return names
-
+from readme_tables import README, first_column_names
 
 def test_readme_documents_exactly_the_steps_columns():
     assert first_column_names("`steps.parquet`, one row per step") == {c.name for c in STEPS}

@@ -3,7 +3,6 @@ metrics recomputed from them, one seed giving one run, and the options it does n
 refused in one line."""
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,20 +21,14 @@ from trackjam.simulation.swarm_logs import truth_and_estimates
 from trackjam.simulation.swarm_schema import SWARM_TABLES
 from trackjam.viz.swarm import served_targets
 
-README = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+from readme_tables import first_column_names
+from swarm_scenarios import two_targets
 
-TWO = [
-    "target=null",
-    "targets=[{id: a, initial: [20, 20, 20, 1.5, 2.0, 1.7]}, {id: b, initial: [60, 60, 60, -1, 0, 0]}]",
-    "agents.initial=[[30, 30, 30], [20, 10, 10], [60, 50, 50]]",
-    "filter.particles=300", "filter.birth_particles=100",
-    "filter.cue={existence: 0.9, position_std: 2, velocity_std: 2}",
-    "antenna.pointing=aim", "steps=5", "fusion.existence=mean", "control.fallback=hover",
-]
+
 
 
 def two(*extra, solver="greedy"):
-    return load_scenario("paper-fig3", [*TWO, f"control.solver={solver}", *extra])
+    return two_targets("steps=5", f"control.solver={solver}", *extra)
 
 
 @pytest.fixture(scope="module")
@@ -167,20 +160,9 @@ def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_o
             SwarmSimulation(two(f"{key}={value}"))
 
 
-def _names(heading: str) -> set[str]:
-    part = README.split(heading, 1)[1]
-    rows = [line for line in part.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
-    names = set()
-    for row in rows:
-        for span in re.findall(r"`([^`]+)`", row.split(" | ")[0]):
-            names |= {span[:-5] + k for k in "xyz"} if span.endswith("_x/y/z") else (
-                set("xyz") if span == "x/y/z" else {span})
-    return names
-
-
 @pytest.mark.parametrize("table", list(SWARM_TABLES))
 def test_readme_documents_exactly_each_swarm_log(table):
-    assert _names(f"Several targets: `{table}.parquet`") == {c.name for c in SWARM_TABLES[table]}
+    assert first_column_names(f"Several targets: `{table}.parquet`") == {c.name for c in SWARM_TABLES[table]}
 
 
 def test_write_run_writes_the_swarm_logs_and_its_figure(run, tmp_path):

@@ -10,25 +10,18 @@ import numpy as np
 import pytest
 
 import trackjam.simulation.swarm as swarm
-from trackjam.config import load_scenario
 from trackjam.control.pursuit import AimSettings, aim_ahead
 from trackjam.estimation.lmb_fusion import GATE
 from trackjam.simulation.swarm import SwarmSimulation, confirmed
 from trackjam.simulation.swarm_search import SEARCH_STEPS, Aim, SearchMemory, plan_point
 from trackjam.world.motion import cv_coast
 
-TWO = [
-    "target=null",
-    "targets=[{id: a, initial: [20, 20, 20, 1.5, 2.0, 1.7]}, {id: b, initial: [60, 60, 60, -1, 0, 0]}]",
-    "agents.initial=[[30, 30, 30], [20, 10, 10], [60, 50, 50]]",
-    "filter.particles=300", "filter.birth_particles=100",
-    "filter.cue={existence: 0.9, position_std: 2, velocity_std: 2}",
-    "antenna.pointing=aim", "steps=8", "fusion.existence=mean", "control.fallback=hover", "control.solver=greedy",
-]
+from swarm_scenarios import two_targets
+
 
 
 def two(*extra):
-    return load_scenario("paper-fig3", [*TWO, *extra])
+    return two_targets("steps=8", "control.solver=greedy", *extra)
 
 
 def state(x, v=(0.0, 0.0, 0.0)):

@@ -1,0 +1,20 @@
+"""The README's column tables, as the log-schema tests read them."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+
+
+def first_column_names(heading: str) -> set[str]:
+    """The names in the first column of the table after ``heading`` (``x_x/y/z`` -> three)."""
+    part = README.split(heading, 1)[1]
+    rows = [line for line in part.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
+    names = set()
+    for row in rows:
+        for span in re.findall(r"`([^`]+)`", row.split(" | ")[0]):
+            names |= {span[:-5] + k for k in "xyz"} if span.endswith("_x/y/z") else (
+                set("xyz") if span == "x/y/z" else {span})
+    return names
