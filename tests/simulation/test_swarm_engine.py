@@ -155,7 +155,8 @@ def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_o
 
     with pytest.raises(ConfigError, match="^targets: 2 targets given"):
         Simulation(two())
-    for key, value in (("comms.loss", "0.1"), ("fusion.existence", "evidence"), ("control.plan_over", "belief")):
+    for key, value in (("comms.loss", "0.1"), ("fusion.existence", "evidence"), ("control.plan_over", "belief"),
+                       ("fusion.search_reseed", "evidence")):
         with pytest.raises(ConfigError, match=f"^{re.escape(key)}: .* not simulated with several targets"):
             SwarmSimulation(two(f"{key}={value}"))
 

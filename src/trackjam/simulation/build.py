@@ -212,6 +212,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
         ("filter.visibility", s.filter.visibility, None),
         ("fusion.existence", s.fusion.existence, "mean"),
         ("control.plan_over", s.control.plan_over, "point"),
+        ("fusion.search_reseed", s.fusion.search_reseed, "always"),
         ("comms.loss", s.comms.loss, 0.0),
         ("comms.delay_steps", s.comms.delay_steps, 0),
         ("comms.failures", s.comms.failures, []),
