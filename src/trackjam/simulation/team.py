@@ -306,9 +306,9 @@ class Team:
 
 
 def coasted_posteriors(late: list[Message], t: int, accel_var: float) -> list[Message]:
-    """``comms.stale: coast`` (ours): each sender's latest late posterior, its estimate predicted
-    by Eq. (1) from its step to ``t`` (existence, and the predicted existence it started from,
-    as sent); a posterior of a step no newer than one already held is not used."""
+    """``comms.stale: coast`` (ours): of the late posteriors that arrived, each sender's latest
+    only, its estimate predicted by Eq. (1) from its step to ``t`` (existence, and the predicted
+    existence it started from, as sent)."""
     latest: dict[int, Message] = {}
     for m in late:
         if m.sender not in latest or latest[m.sender].stamp < m.stamp:
