@@ -205,6 +205,7 @@ def build(s: Scenario) -> Components:
 LMB_BIRTH_RATE = 0.1
 LMB_BIRTH_EXISTENCE_MAX = 0.1
 
+
 def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     """Options of the one-target engine the swarm engine does not read yet: (key, its value in
     the scenario, the value the swarm engine runs with); a scenario that sets another is refused."""
