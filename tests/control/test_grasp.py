@@ -6,7 +6,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from trackjam.control.exact import solve_exact
-from trackjam.control.grasp import neighbour_lists, solve_grasp
+from trackjam.control.grasp import (
+    kernel_local_neighbourhood,
+    local_neighbourhood_reference,
+    neighbour_lists,
+    solve_grasp,
+)
 from trackjam.control.objective import evaluate
 
 from control_instances import assert_grasp_kernel_follows_its_twin, random_problem, tiny_displacements
@@ -33,6 +38,28 @@ def test_neighbours_are_the_nearest_other_displacements(antenna):
         assert c not in neigh[0, c, : n_neigh[0, c]]
         others = np.delete(d, np.r_[c, neigh[0, c, : n_neigh[0, c]]])
         assert chosen.max() <= others.min() + 1e-12
+
+
+def test_local_neighbourhood_draws_two_distinct_neighbours_like_its_twin():
+    # every neighbour count the search meets: none, one, two, several (u-, u+ differ when >= 2)
+    rng = np.random.default_rng(3)
+    L = 4
+    for trial in range(300):
+        n_neigh = rng.integers(0, 6, size=(2, 5))
+        neigh = rng.permutation(np.arange(5 * 2 * 5)).reshape(2, 5, 5)
+        me, u, l0 = trial % 2, int(rng.integers(5)), int(rng.integers(L))
+        r1, r2 = np.random.default_rng(trial), np.random.default_rng(trial)
+        u_minus, u_plus, l_minus, l_plus = kernel_local_neighbourhood(r1, neigh, n_neigh, me, u, l0, L)
+        us, ls = local_neighbourhood_reference(r2, neigh, n_neigh, me, u, l0, L)
+        assert [u_minus, u, u_plus] == us and [l_minus, l0, l_plus] == ls
+        assert r1.random() == r2.random()  # both drew as many numbers
+        m = n_neigh[me, u]
+        near = set(neigh[me, u, :m])
+        if m >= 2:
+            assert u_minus != u_plus and {u_minus, u_plus} <= near
+        else:
+            assert u_minus == u_plus == (neigh[me, u, 0] if m == 1 else u)
+        assert ls == [max(l0 - 1, 0), l0, min(l0 + 1, L - 1)]
 
 
 @settings(max_examples=20, deadline=None)

@@ -17,8 +17,6 @@ ties are the one-target GRASP's, so the plan is the same.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 from numba import njit
 
@@ -29,7 +27,13 @@ from trackjam.control.assignment_problem import (
     kernel_targets_value,
     to_assignment_solution,
 )
-from trackjam.control.grasp import neighbour_lists
+from trackjam.control.grasp import (
+    grasp_reference_loop,
+    kernel_local_neighbourhood,
+    local_neighbourhood_reference,
+    neighbour_lists,
+    search_every_agent,
+)
 
 
 @njit(cache=True, nogil=True)
@@ -97,19 +101,8 @@ def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constra
             it_p[:] = start_p
             it_t[:] = start_t
         u = it_p[me] // L
-        m = n_neigh[me, u]
-        if m >= 2:
-            a = min(int(rng.random() * m), m - 1)
-            b = min(int(rng.random() * (m - 1)), m - 2)
-            if b >= a:
-                b += 1
-            u_minus, u_plus = neigh[me, u, a], neigh[me, u, b]
-        elif m == 1:
-            u_minus, u_plus = neigh[me, u, 0], neigh[me, u, 0]
-        else:
-            u_minus, u_plus = u, u
         l0 = it_p[me] % L
-        l_minus, l_plus = max(l0 - 1, 0), min(l0 + 1, L - 1)
+        u_minus, u_plus, l_minus, l_plus = kernel_local_neighbourhood(rng, neigh, n_neigh, me, u, l0, L)
         pr[:] = it_p
         tg[:] = it_t
         ls_best = it_best
@@ -134,52 +127,22 @@ def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constra
 
 def assignment_grasp_reference(rng, me, problem: AssignmentProblem, neigh, n_neigh, samples, iterations):
     """Plain-numpy twin of :func:`kernel_assignment_grasp` from the starting incumbent (same
-    draws, same ties); returns (value, pairs c * L + l, targets)."""
+    draws, same ties); returns (value, pairs c * L + l, targets). Agent i's choice x is target
+    x // blk_i and pair x mod blk_i (blk_i = n_cand_i L)."""
     N, K, L = problem.n_agents, problem.n_targets, problem.n_levels
+    blk = problem.n_cand * L
 
-    def values(pair, target):
-        v, ok = assignment_value(problem, pair // L, pair % L, target)
+    def values(x):
+        v, ok = assignment_value(problem, x % blk // L, x % blk % L, x // blk)
         return np.where(ok, v, -np.inf) if problem.constraints else v
 
-    start_p = np.zeros(N, dtype=np.int64)
-    start_t = np.zeros(N, dtype=np.int64)
-    best_p, best_t = start_p.copy(), start_t.copy()
-    start = best = float(values(start_p, start_t))
-    blk = problem.n_cand * L
-    M = blk * K
-    for _ in range(iterations):
-        U = rng.random((samples, N))
-        x = np.minimum((U * M).astype(np.int64), M - 1)
-        tg, pr = x // blk, x % blk
-        v = values(pr, tg)
-        s = int(np.argmax(v))
-        if v[s] == -np.inf:
-            it_best, it_p, it_t = start, start_p.copy(), start_t.copy()
-        else:
-            it_best, it_p, it_t = float(v[s]), pr[s].copy(), tg[s].copy()
-        u = it_p[me] // L
-        m = n_neigh[me, u]
-        if m >= 2:
-            a = min(int(rng.random() * m), m - 1)
-            b = min(int(rng.random() * (m - 1)), m - 2)
-            b += b >= a
-            us = [neigh[me, u, a], u, neigh[me, u, b]]
-        else:
-            us = [neigh[me, u, 0] if m == 1 else u, u, neigh[me, u, 0] if m == 1 else u]
-        l0 = it_p[me] % L
-        ls = [max(l0 - 1, 0), l0, min(l0 + 1, L - 1)]
-        trials = [(uu * L + ll, k) for uu in us for ll in ls for k in range(K)]
-        trial_p = np.tile(it_p, (len(trials), 1))
-        trial_t = np.tile(it_t, (len(trials), 1))
-        trial_p[:, me] = [t[0] for t in trials]
-        trial_t[:, me] = [t[1] for t in trials]
-        tv = values(trial_p, trial_t)
-        t = int(np.argmax(tv))
-        if tv[t] > it_best:
-            it_best, it_p, it_t = float(tv[t]), trial_p[t], trial_t[t]
-        if it_best > best:
-            best, best_p, best_t = it_best, it_p.copy(), it_t.copy()
-    return best, best_p, best_t
+    def neighbourhood(x):
+        us, ls = local_neighbourhood_reference(rng, neigh, n_neigh, me, x % blk[me] // L, x % blk[me] % L, L)
+        return [k * blk[me] + uu * L + ll for uu in us for ll in ls for k in range(K)]
+
+    best, x = grasp_reference_loop(rng, me, samples, iterations, blk * K, np.zeros(N, dtype=np.int64), values,
+                                   neighbourhood)
+    return best, x % blk, x // blk
 
 
 def solve_assignment_grasp(problem: AssignmentProblem, rngs: list[np.random.Generator], samples: int = 10000,
@@ -187,8 +150,6 @@ def solve_assignment_grasp(problem: AssignmentProblem, rngs: list[np.random.Gene
     """Every agent runs its search with ``rngs[j]``; all apply the best (ties: lower j);
     ``threads > 1`` runs the searches side by side (same result)."""
     N, L = problem.n_agents, problem.n_levels
-    if len(rngs) < N:
-        raise ValueError(f"grasp needs one random generator per agent ({N}), got {len(rngs)}")
     neigh, n_neigh = neighbour_lists(problem.targets[0], neighbours)
     values = np.empty(N)
     pairs = np.zeros((N, N), dtype=np.int64)
@@ -201,11 +162,6 @@ def solve_assignment_grasp(problem: AssignmentProblem, rngs: list[np.random.Gene
             pairs[j], targets[j],
         )
 
-    if threads > 1 and N > 1:
-        with ThreadPoolExecutor(max_workers=min(threads, N)) as pool:
-            list(pool.map(search, range(N)))
-    else:
-        for j in range(N):
-            search(j)
+    search_every_agent(search, rngs, N, threads)
     best = int(np.argmax(values))
     return to_assignment_solution(problem, pairs[best] // L, pairs[best] % L, targets[best])

@@ -28,6 +28,7 @@ more: a = floor(U1 m), b = floor(U2 (m - 1)), b += 1 if b >= a, for the m neighb
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, Sequence
 
 import numpy as np
 from numba import njit
@@ -61,6 +62,40 @@ def neighbour_lists(problem: Problem, neighbours: int) -> tuple[np.ndarray, np.n
         neigh[i, :n, : order.shape[1]] = order
         n_neigh[i, :n] = order.shape[1]
     return neigh, n_neigh
+
+
+@njit(cache=True, nogil=True)
+def kernel_local_neighbourhood(rng, neigh, n_neigh, me, u, l0, L):
+    """The local search's (u-, u+, l-, l+) around agent ``me``'s control (u, l0): two distinct
+    of u's ``n_neigh`` neighbours drawn with two ``rng.random()`` (the module docstring), u's
+    only neighbour twice when it has one, u itself when none (no draw then); the adjacent levels
+    clipped at the ends of L levels."""
+    m = n_neigh[me, u]
+    if m >= 2:
+        a = min(int(rng.random() * m), m - 1)
+        b = min(int(rng.random() * (m - 1)), m - 2)
+        if b >= a:
+            b += 1
+        u_minus, u_plus = neigh[me, u, a], neigh[me, u, b]
+    elif m == 1:
+        u_minus, u_plus = neigh[me, u, 0], neigh[me, u, 0]
+    else:
+        u_minus, u_plus = u, u
+    return u_minus, u_plus, max(l0 - 1, 0), min(l0 + 1, L - 1)
+
+
+def local_neighbourhood_reference(rng, neigh, n_neigh, me, u, l0, L) -> tuple[list, list]:
+    """Plain twin of :func:`kernel_local_neighbourhood` (same draws): ([u-, u, u+], [l-, l0, l+]),
+    u+ drawn uniformly from the neighbours other than u-."""
+    near = [int(v) for v in neigh[me, u, : n_neigh[me, u]]]
+    levels = [int(v) for v in np.clip([l0 - 1, l0, l0 + 1], 0, L - 1)]
+    if len(near) < 2:
+        one = near[0] if near else u
+        return [one, u, one], levels
+    U = rng.random(2)
+    a = min(int(U[0] * len(near)), len(near) - 1)
+    rest = near[:a] + near[a + 1:]
+    return [near[a], u, rest[min(int(U[1] * len(rest)), len(rest) - 1)]], levels
 
 
 @njit(cache=True)
@@ -155,18 +190,7 @@ def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
                 for i in range(N):
                     c[i] = pair_c[kk[i]]
                     lv[i] = pair_l[kk[i]]
-                ok = True
-                if constrained:
-                    # Eq. (13) inline: the hottest test of the search
-                    for i in range(N):
-                        r = 0.0
-                        for j in range(N):
-                            if j != i:
-                                r += levels_w[lv[j]] * gain[i, j, c[i], c[j]]
-                        if r >= delta:
-                            ok = False
-                            break
-                if ok:
+                if not constrained or kernel_feasible(gain, levels_w, delta, c, lv):
                     it_best = xi
                     for i in range(N):
                         it_c[i] = c[i]
@@ -177,19 +201,8 @@ def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
             it_l[:] = start_l
         # 2. local search over my own {u-, u, u+} x {l-, l, l+}
         u = it_c[me]
-        m = n_neigh[me, u]
-        if m >= 2:
-            a = min(int(rng.random() * m), m - 1)
-            b = min(int(rng.random() * (m - 1)), m - 2)
-            if b >= a:
-                b += 1
-            u_minus, u_plus = neigh[me, u, a], neigh[me, u, b]
-        elif m == 1:
-            u_minus, u_plus = neigh[me, u, 0], neigh[me, u, 0]
-        else:
-            u_minus, u_plus = u, u
         l0 = it_l[me]
-        l_minus, l_plus = max(l0 - 1, 0), min(l0 + 1, L - 1)
+        u_minus, u_plus, l_minus, l_plus = kernel_local_neighbourhood(rng, neigh, n_neigh, me, u, l0, L)
         c[:] = it_c
         lv[:] = it_l
         ls_best = it_best
@@ -211,56 +224,72 @@ def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
     return best
 
 
+def grasp_reference_loop(rng, me, samples, iterations, n_choices, start, values, neighbourhood):
+    """The plain-numpy GRASP of agent ``me`` over joint choices x (N,), agent i's x_i in
+    [0, n_choices[i]): ``values(x)`` scores joint choices (..., N) (-inf: infeasible),
+    ``neighbourhood(x_me)`` lists (drawing from ``rng``) agent me's local-search choices in trial
+    order. The twins of both compiled searches; returns (value, x)."""
+    start = np.array(start)
+    best_x = start.copy()
+    start_value = best = float(values(start))
+    for _ in range(iterations):
+        U = rng.random((samples, len(n_choices)))
+        x = np.minimum((U * n_choices).astype(np.int64), n_choices - 1)
+        v = values(x)
+        s = int(np.argmax(v))
+        if v[s] == -np.inf:
+            it_best, it_x = start_value, start.copy()
+        else:
+            it_best, it_x = float(v[s]), x[s].copy()
+        options = neighbourhood(it_x[me])
+        trials = np.tile(it_x, (len(options), 1))
+        trials[:, me] = options
+        tv = values(trials)
+        t = int(np.argmax(tv))
+        if tv[t] > it_best:
+            it_best, it_x = float(tv[t]), trials[t]
+        if it_best > best:
+            best, best_x = it_best, it_x.copy()
+    return best, best_x
+
+
 def grasp_search_reference(rng, me, problem: Problem, neigh, n_neigh, samples, iterations,
                            start_cand, start_level):
-    """Plain-numpy twin of :func:`kernel_grasp_search` (same draws, same ties)."""
+    """Plain-numpy twin of :func:`kernel_grasp_search` (same draws, same ties); returns (value,
+    candidate slots, levels)."""
     N, L, n = problem.n_agents, problem.n_levels, problem.at_least
     idx = np.arange(N)
     p_s, w = problem.objective_tables()
 
-    def values(c, lv):
+    def values(k):
+        c, lv = k // L, k % L
         xi = mean_at_least(p_s[:, idx, c, lv], w, n)
         if problem.constraints:
             ok = np.all(received_interference(problem.gain, problem.levels_w, c, lv) < problem.delta_w, axis=-1)
             xi = np.where(ok, xi, -np.inf)
         return xi
 
-    start_c, start_l = np.array(start_cand), np.array(start_level)
-    best_c, best_l = start_c.copy(), start_l.copy()
-    start = best = float(values(start_c, start_l))
-    M = problem.n_cand * L
-    for _ in range(iterations):
-        U = rng.random((samples, N))
-        k = np.minimum((U * M).astype(np.int64), M - 1)
-        c, lv = k // L, k % L
-        v = values(c, lv)
-        s = int(np.argmax(v))
-        if v[s] == -np.inf:
-            it_best, it_c, it_l = start, start_c.copy(), start_l.copy()
-        else:
-            it_best, it_c, it_l = float(v[s]), c[s].copy(), lv[s].copy()
-        u = it_c[me]
-        m = n_neigh[me, u]
-        if m >= 2:
-            a = min(int(rng.random() * m), m - 1)
-            b = min(int(rng.random() * (m - 1)), m - 2)
-            b += b >= a
-            us = [neigh[me, u, a], u, neigh[me, u, b]]
-        else:
-            us = [neigh[me, u, 0] if m == 1 else u, u, neigh[me, u, 0] if m == 1 else u]
-        l0 = it_l[me]
-        ls = [max(l0 - 1, 0), l0, min(l0 + 1, L - 1)]
-        trial_c = np.tile(it_c, (9, 1))
-        trial_l = np.tile(it_l, (9, 1))
-        trial_c[:, me] = np.repeat(us, 3)
-        trial_l[:, me] = np.tile(ls, 3)
-        tv = values(trial_c, trial_l)
-        t = int(np.argmax(tv))
-        if tv[t] > it_best:
-            it_best, it_c, it_l = float(tv[t]), trial_c[t], trial_l[t]
-        if it_best > best:
-            best, best_c, best_l = it_best, it_c.copy(), it_l.copy()
-    return best, best_c, best_l
+    def neighbourhood(k):
+        us, ls = local_neighbourhood_reference(rng, neigh, n_neigh, me, k // L, k % L, L)
+        return [uu * L + ll for uu in us for ll in ls]
+
+    start = np.asarray(start_cand) * L + np.asarray(start_level)
+    best, k = grasp_reference_loop(rng, me, samples, iterations, problem.n_cand * L, start, values, neighbourhood)
+    return best, k // L, k % L
+
+
+def search_every_agent(search: Callable[[int], None], rngs: Sequence[np.random.Generator], n_agents: int,
+                       threads: int) -> None:
+    """Run every agent's ``search(j)`` (agent j draws from ``rngs[j]``); ``threads > 1`` runs them
+    side by side (they are independent, as on the real team, so the result does not depend on it)."""
+    if len(rngs) < n_agents:
+        raise ValueError(f"grasp needs one random generator per agent ({n_agents}), got {len(rngs)}")
+    if threads > 1 and n_agents > 1:
+        with ThreadPoolExecutor(max_workers=min(threads, n_agents)) as pool:
+            list(pool.map(search, range(n_agents)))
+    else:
+        for j in range(n_agents):
+            search(j)
 
 
 def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int = 10000,
@@ -271,8 +300,6 @@ def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int 
     real team, so the result does not depend on it).
     """
     N = problem.n_agents
-    if len(rngs) < N:
-        raise ValueError(f"grasp needs one random generator per agent ({N}), got {len(rngs)}")
     neigh, n_neigh = neighbour_lists(problem, neighbours)
     p_s, w = problem.objective_tables()
     values = np.empty(N)
@@ -286,11 +313,6 @@ def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int 
             int(samples), int(iterations), cands[j], levels[j],
         )
 
-    if threads > 1 and N > 1:
-        with ThreadPoolExecutor(max_workers=min(threads, N)) as pool:
-            list(pool.map(search, range(N)))
-    else:
-        for j in range(N):
-            search(j)
+    search_every_agent(search, rngs, N, threads)
     best = int(np.argmax(values))
     return to_solution(problem, cands[best], levels[best])
