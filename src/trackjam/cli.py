@@ -96,6 +96,15 @@ def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
     return s
 
 
+def _runnable(s) -> None:
+    """Refuse, in one line, an option the engine that runs ``s`` does not simulate (several
+    targets run on the swarm engine, which reads fewer options): `validate` says so as `run` would."""
+    if s.targets is not None and len(s.targets) > 1:
+        from trackjam.simulation.build import build_swarm
+
+        build_swarm(s)
+
+
 @app.command()
 @user_errors
 def presets() -> None:
@@ -130,6 +139,7 @@ def validate(
 ) -> None:
     """Check a scenario file; print `ok` or one line naming the key and the problem."""
     s = _load(file, set_)
+    _runnable(s)
     typer.echo(f"ok: {s.name}, {s.n_agents} agents, {s.steps} steps")
 
 
@@ -176,6 +186,7 @@ def run(
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
     s = _load(scenario, set_, seed)
+    _runnable(s)
     out = out or Path("runs") / f"{s.name}-seed{s.seed}"
     from trackjam.simulation.output import check_out_dir
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import tempfile
 from pathlib import Path
 
 
@@ -110,6 +111,11 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
             raise ConfigError(f"--json {json_out}: is a folder, not a file")
         if not json_out.absolute().parent.is_dir():
             raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not an existing folder")
+        try:  # a real probe: os.access says yes to root even on read-only file systems
+            with tempfile.TemporaryFile(dir=json_out.absolute().parent):
+                pass
+        except OSError as err:
+            raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not writable ({err.strerror})") from None
     results = {"machine": machine(), "quick": quick}
     print(f"machine: {results['machine']}", flush=True)
     for g in chosen:
@@ -118,7 +124,11 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
         results[g] = rows
         _print(g, rows)
     if json_out is not None:
+        from trackjam.errors import OutputError
         from trackjam.files import atomic_write
 
-        atomic_write(json_out, lambda tmp: tmp.write_text(json.dumps(results, indent=2) + "\n"))
+        try:
+            atomic_write(json_out, lambda tmp: tmp.write_text(json.dumps(results, indent=2) + "\n"))
+        except OSError as err:
+            raise OutputError(f"--json {json_out}: cannot be written ({err.strerror or err}); the tables above hold the figures") from None
     return results

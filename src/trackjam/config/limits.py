@@ -17,6 +17,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from trackjam.errors import ConfigError
+
 MAX_LENGTH = 1e5  # m: coordinates, heights, radii, standard deviations of positions
 MAX_SPEED = 1e3  # m/s
 MAX_ACCEL_VAR = 1e4  # m^2/s^4, an acceleration standard deviation of 100 m/s^2
@@ -27,6 +29,17 @@ MAX_STEPS = 100_000
 MAX_AGENTS = 64
 MAX_STEP_WORK = 1e9  # elementary operations a step (about 5 to 30 s on one core)
 NAME_MAX = 100
+# the swarm engine's budgets (several targets), mirrored here because the configuration imports
+# nothing of the engine (tests/test_limits_swarm.py holds them equal): an agent's LMB filter
+# keeps at most MAX_TRACKS tracks and MAX_BIRTHS births a scan (sum_j r_B(y_j) <= lambda_B = 0.1,
+# births below r = 1e-3 are pruned), and the team plans at most MAX_AIMS aims
+MAX_TRACKS = 20
+# an experiment builds every (configuration, trial) scenario up front (about 1 ms each, without
+# a word): the cap keeps that under half a minute
+MAX_TRIAL_RUNS = 20_000
+WORKER_BYTES = 3e8  # a worker process with numpy, numba and trackjam loaded (about 200 MB) and its trial's copies
+MAX_BIRTHS = 100
+MAX_AIMS = 4
 
 _NAME = re.compile(r"[^\W][\w.+-]*")
 
@@ -34,7 +47,7 @@ _NAME = re.compile(r"[^\W][\w.+-]*")
 _DEFAULTS = {
     "agents.initial": 3, "agents.radial_steps": 3, "agents.n_inclination": 8, "agents.n_azimuth": 8,
     "filter.particles": 10_000, "filter.birth_particles": 2000, "sensor.clutter_rate": 3.0,
-    "steps": 30, "control.grasp.samples": 10_000, "control.grasp.iterations": 100,
+    "steps": 30, "control.grasp.samples": 10_000, "control.grasp.iterations": 100, "targets": 3,
 }
 
 
@@ -108,12 +121,39 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
         "work_filter": (N * (n + n_b) * (m + 1.0), particles + ("sensor.clutter_rate",)),
         "work_tables": (float(N * N * C * C), moves),
     }
+    if s.targets is not None and len(s.targets) > 1:
+        out.update(_swarm_estimate(s, N, C, L, m))
     if s.control.solver == "grasp":
         out["work_grasp"] = (
             float(N) * s.control.grasp.samples * s.control.grasp.iterations * N,
             ("control.grasp.samples", "control.grasp.iterations", "agents.initial"),
         )
     return out
+
+
+def _swarm_estimate(s: Any, N: int, C: int, L: int, m: float) -> dict[str, tuple[float, tuple[str, ...]]]:
+    """The swarm engine's figures, which replace the one-target filter's and tables: each agent
+    holds a confirmed track of n particles per target (up to MAX_TRACKS), the other tracks and
+    the births of its scan at n_b, and updates them by its own scan or, with ``fusion.share:
+    scans``, by every agent's; the plan's gains cover K_a = min(K, MAX_AIMS) aims per agent."""
+    n, n_b = s.filter.particles, s.filter.birth_particles
+    held = min(len(s.targets), MAX_TRACKS)
+    per_agent = held * n + (MAX_TRACKS - held) * min(n, n_b) + min(m, MAX_BIRTHS) * n_b
+    scans = N if s.fusion.share == "scans" else 1
+    aims = min(len(s.targets), MAX_AIMS)
+    particles = ("filter.particles", "filter.birth_particles", "agents.initial", "targets")
+    moves = ("agents.n_inclination", "agents.n_azimuth", "agents.radial_steps", "agents.initial")
+    # the logs hold the ids as text (4 bytes a character): a column of each target's row per step
+    # and of every measurement's
+    id_bytes = 4.0 * max(len(str(tg.id)) for tg in s.targets)
+    per_step = N * (8.0 * (6 * m + 25) + m * id_bytes) + len(s.targets) * (2 * id_bytes + 120.0)
+    return {
+        "memory_logs": (s.steps * per_step, ("steps", "sensor.clutter_rate", "agents.initial", "targets")),
+        "memory_particles": (N * per_agent * 8.0 * 14, particles),
+        "work_filter": (N * scans * per_agent * (m + 1.0), particles + ("sensor.clutter_rate",)),
+        "memory_tables": (8.0 * (N * N * (aims * C) ** 2 + aims * (N * N * C * C + 2 * N * C * L + N)), moves),
+        "work_tables": (float(N * N * (aims * C) ** 2), moves),
+    }
 
 
 def _value(s: Any, key: str) -> float:
@@ -133,6 +173,35 @@ def _bytes(b: float) -> str:
         if b >= size:
             return f"{b / size:.3g} {unit}"
     return f"{b / 1e3:.3g} kB"
+
+
+def run_memory(s: Any) -> float:
+    """The memory a run of ``s`` holds at once, by :func:`estimate` [bytes]."""
+    return sum(b for k, (b, _) in estimate(s).items() if k.startswith("memory_"))
+
+
+def check_trial_runs(trials: int, configurations: int) -> None:
+    """Refuse (one line, naming --trials) an experiment whose plan alone would not end: every
+    (configuration, trial) scenario is built and checked before the first trial runs."""
+    runs = trials * configurations
+    if runs > MAX_TRIAL_RUNS:
+        raise ConfigError(
+            f"--trials {trials}: {runs:,} trial runs ({configurations} configurations x {trials:,} trials), "
+            f"past the cap of {MAX_TRIAL_RUNS:,}; lower --trials"
+        )
+
+
+def check_workers(workers: int, trial_memory: float) -> None:
+    """Refuse (one line, naming --workers) a local pool that cannot fit this machine: each worker
+    is a process of about ``WORKER_BYTES`` holding one trial at a time."""
+    need = workers * (WORKER_BYTES + trial_memory)
+    budget = memory_budget()
+    if need > budget:
+        most = max(1, int(budget // (WORKER_BYTES + trial_memory)))
+        raise ConfigError(
+            f"--workers {workers}: {workers} worker processes would hold about {_bytes(need)} of memory, more than "
+            f"half of this machine's ({_bytes(2 * budget)}); use at most {most}"
+        )
 
 
 def check_resources(s: Any) -> None:

@@ -20,6 +20,11 @@ from trackjam.config.model import Scenario
 from trackjam.errors import ConfigError
 
 MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and stray binaries
+# values of a scenario once YAML's aliases are expanded: a 1 MB file holds fewer than this, but
+# nested aliases (*a of a list of *b of ...) expand a few lines to billions, and copying or
+# validating them would never end
+MAX_VALUES = 1_000_000
+MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would be a line of 600 kB)
 
 
 class _Loader(yaml.SafeLoader):
@@ -45,8 +50,33 @@ _Loader.add_implicit_resolver(
 )
 
 
+class TooManyValues(yaml.YAMLError):
+    """The aliases of a YAML text expand past ``MAX_VALUES`` values."""
+
+
+def _check_size(data: Any) -> None:
+    """Count the values of ``data`` as its readers see them (an alias counts once per use),
+    stopping at ``MAX_VALUES``: a shared list is walked as often as it is used, so the count
+    costs at most ``MAX_VALUES`` steps however far the aliases would expand."""
+    stack, seen = [data], 0
+    while stack:
+        node = stack.pop()
+        seen += 1
+        if seen > MAX_VALUES:
+            raise TooManyValues(
+                f"its aliases (*name) expand to more than {MAX_VALUES:,} values; a scenario has a few hundred"
+            )
+        if isinstance(node, dict):
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+
+
 def _yaml(text: str) -> Any:
-    return yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader)
+    data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader)
+    _check_size(data)
+    return data
+
 
 def _section_keys(loc: tuple) -> list[str]:
     """The keys the section at ``loc`` accepts (empty when ``loc`` is not a section)."""
@@ -102,11 +132,13 @@ def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str,
         return Scenario.model_validate(data)
     except ValidationError as err:
         by_source: dict[str, list[str]] = {}
-        for key, msg in _errors(err):
+        problems = _errors(err)
+        for key, msg in problems[:MAX_SHOWN]:
             item = _blamed(key, msg, overridden or {})
             where = f"--set {item if len(item) <= 60 else item[:57] + '...'}" if item else source
             by_source.setdefault(where, []).append(f"{key}: {msg}" if key else msg)
-        raise ConfigError("; ".join(f"{where}: " + "; ".join(problems) for where, problems in by_source.items())) from None
+        more = f"; and {len(problems) - MAX_SHOWN} more problems" if len(problems) > MAX_SHOWN else ""
+        raise ConfigError("; ".join(f"{where}: " + "; ".join(found) for where, found in by_source.items()) + more) from None
 
 
 def preset_names() -> list[str]:
@@ -149,6 +181,8 @@ def _read_file(path: Path) -> dict:
     toml = path.suffix.lower() == ".toml"
     try:
         data = tomllib.loads(text) if toml else _yaml(text)
+    except TooManyValues as err:
+        raise ConfigError(f"{path}: {err}") from None
     except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
         if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
@@ -164,6 +198,8 @@ def _read_file(path: Path) -> dict:
 def _parse_value(text: str) -> Any:
     try:
         return _yaml(text)
+    except TooManyValues:
+        raise
     except yaml.YAMLError:
         return text
 
@@ -192,7 +228,11 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
         if "=" not in item:
             raise ConfigError(f"--set {item!r}: expected key=value")
         key, _, value = item.partition("=")
-        set_dotted(data, key, _parse_value(value))
+        try:
+            parsed = _parse_value(value)
+        except TooManyValues as err:
+            raise ConfigError(f"--set {key.strip()}: {err}") from None
+        set_dotted(data, key, parsed)
     return data
 
 

@@ -442,8 +442,8 @@ class Control(_Model):
 class Failure(_Model):
     """One agent's failure from a given step on (ours; SMA-NBO's fault patterns)."""
 
-    agent: int = Field(ge=0, description="index of the failing agent")
-    step: int = Field(ge=1, description="first step of the failure")
+    agent: Integer(0, MAX_AGENTS - 1) = Field(description=f"index of the failing agent, in [0, {MAX_AGENTS - 1}] (and below N)")
+    step: Step = Field(description=f"first step of the failure, in [1, {MAX_STEPS}]")
     mode: Literal["publisher", "channel", "breakdown"] = Field(
         description="`publisher`: its messages no longer reach anyone (it still receives and acts); `channel`: it "
         "neither sends nor receives (acts alone on its own filter); `breakdown`: the agent stops (hovers, "
@@ -455,13 +455,15 @@ class Comms(_Model):
     """The team's message exchange and its faults (ours; the paper assumes every message arrives)."""
 
     loss: Prob = Field(0.0, description="probability that each message from one agent to another is lost")
-    delay_steps: int = Field(0, ge=0, le=1000, description="steps a message takes to arrive")
+    delay_steps: Integer(0, 1000) = Field(0, description="steps a message takes to arrive, in [0, 1000]")
     stale: Literal["drop", "coast"] = Field(
         "coast",
         description="a teammate's posterior that arrives late: `drop` (only its position is kept) or `coast` (ours: "
         "its estimate is predicted by Eq. (1) to the current step and fused with the fresh ones)",
     )
-    failures: list[Failure] = Field(default_factory=list, description="agents that fail at a given step")
+    failures: list[Failure] = Field(
+        default_factory=list, max_length=1000, description="agents that fail at a given step (at most 1000)"
+    )
 
 
 class Metrics(_Model):

@@ -11,8 +11,9 @@ or has flown out of the area (``target.walls: leave``), and is truncated after `
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from pathlib import Path
 
 import numpy as np
 from gymnasium import logger, spaces
@@ -21,14 +22,24 @@ from pettingzoo import ParallelEnv
 from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
-from trackjam.simulation.build import figure_settings, with_seed
+from trackjam.simulation.build import Scenario, figure_settings, with_seed
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
 
-if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
-    from trackjam.simulation.build import Scenario
-
 RENDER_MODES = ("rgb_array", "replay")
+MAX_JAM_PENALTY = 1e6
+MAX_SEED = 2**63 - 1  # the scenario's seed bound
+
+
+def _check_replay_path(path) -> None:
+    """Refuse, at construction, a ``replay_path`` that ``render()`` could not write."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"replay_path: expected a file path, got {type(path).__name__}")
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"replay_path: {p} is a folder, not a file")
+    if not p.absolute().parent.is_dir():
+        raise ValueError(f"replay_path: {p.absolute().parent} is not an existing folder")
 
 
 @dataclass(frozen=True)
@@ -45,10 +56,16 @@ class TrackjamParallelEnv(ParallelEnv):
 
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
                  replay_path: str = "replay.html") -> None:
-        if not np.isfinite(jam_penalty) or jam_penalty < 0:
-            raise ValueError(f"jam_penalty: must be a finite number >= 0, got {jam_penalty!r}")
+        if not isinstance(scenario, Scenario):
+            raise TypeError(f"scenario: expected a Scenario (trackjam.load_scenario(...)), got {type(scenario).__name__}")
+        # a penalty past MAX_JAM_PENALTY times the largest violation (about 1.7e4) overflows the reward to -inf
+        if (isinstance(jam_penalty, bool) or not isinstance(jam_penalty, (int, float, np.integer, np.floating))
+                or not 0 <= jam_penalty <= MAX_JAM_PENALTY):
+            raise ValueError(f"jam_penalty: must be a number in [0, {MAX_JAM_PENALTY:g}], got {jam_penalty!r}")
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode: {render_mode!r} is not one of {', '.join(RENDER_MODES)} (or None)")
+        if render_mode == "replay":
+            _check_replay_path(replay_path)
         self.scenario = scenario
         self.jam_penalty = float(jam_penalty)
         self.render_mode = render_mode
@@ -91,8 +108,8 @@ class TrackjamParallelEnv(ParallelEnv):
         if seed is None:
             # before the first reset, self.sim runs on the scenario's own seed
             seed = self.sim.c.seed if self._seed is None else self._seed + 1
-        elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"reset(seed={seed!r}): the seed must be an integer >= 0")
+        elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
+            raise ValueError(f"reset(seed={seed!r}): the seed must be an integer in [0, 2^63 - 1]")
         self._seed = int(seed)
         self.sim = Simulation(with_seed(self.scenario, self._seed))
         self.agents = list(self.possible_agents)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tempfile
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, field
@@ -21,7 +22,8 @@ from typing import Any, Callable, Mapping
 
 import trackjam
 from trackjam.config import Scenario
-from trackjam.errors import ConfigError
+from trackjam.config.limits import check_trial_runs, check_workers, run_memory
+from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor
 from trackjam.experiments.definitions import (
     SWARM,
@@ -35,6 +37,7 @@ from trackjam.experiments.definitions import (
     trial_scenario,
 )
 from trackjam.experiments.progress import make_reporter
+from trackjam.simulation.build import build_swarm, several_targets
 from trackjam.experiments.summary import (
     TIMING,
     DamagedTrial,
@@ -204,6 +207,9 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
         # trial-major: a sweep stopped early leaves every cell with the same trials
         scenarios = {(c.index, k): swarm_scenario(experiment, space, base, c, k, seed)
                      for k in range(trials) for c in experiment.configurations}
+        for c in experiment.configurations:  # an option the swarm engine does not read: refused here, not by a worker
+            if several_targets(scenarios[(c.index, 0)]):
+                build_swarm(scenarios[(c.index, 0)])
     else:
         draws = [draw_for(base, seed, k) for k in range(trials)]
         scenarios = {
@@ -254,11 +260,17 @@ def run_experiment(
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
     overrides = list(overrides or [])
     out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
+    check_trial_runs(trials, len(experiment.configurations))
 
     scenarios, configurations = _plan(experiment, trials, steps, seed, overrides)
+    if scheduler is None:
+        check_workers(workers or os.cpu_count() or 1, max(run_memory(s) for s in scenarios.values()))
     report = make_reporter(progress, experiment, configurations, total=len(scenarios))
     params = _parameters(experiment, trials, steps, seed, overrides, trial)
     _check_out(out, params)
+    for written in ("summary.csv", "timing.csv", "paired.csv", experiment.figure):
+        if (out / written).exists() and not (out / written).is_file():
+            raise ConfigError(f"--out {out}: {written} is a folder, not a file; move it away or choose another --out")
 
     with open_executor(workers, scheduler) as (executor, window):
         _claim(out, params)
@@ -285,7 +297,13 @@ def run_experiment(
                     missing = [k for k in record_keys(experiment) if k not in record]
                     if missing:
                         raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} summarises them)")
-                    write_trial(folder, record)
+                    try:
+                        write_trial(folder, record)
+                    except OSError as err:
+                        raise OutputError(
+                            f"{folder}: trial {record['trial']} of configuration {record['config']} cannot be written "
+                            f"({err.strerror or err}); the {len(records)} trials written before it are intact"
+                        ) from None
                     records.append(record)
                     report.trial(record)
         finally:
@@ -302,14 +320,24 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
 
     summary = table_rows(records, configurations, experiment.metrics, experiment.counts)
     timing = table_rows(records, configurations, TIMING)
-    write_table(out / "summary.csv", summary)
-    write_table(out / "timing.csv", timing)
-    files = [out / "summary.csv", out / "timing.csv"]
+    files: list[Path] = []
+
+    def put(name: str, write: Callable[[Path], object]) -> None:
+        try:
+            write(out / name)
+        except OSError as err:
+            raise OutputError(
+                f"{out / name}: cannot be written ({err.strerror or err}); the trials in {out / 'trials'} are intact: "
+                "rerun the same command once it can be written"
+            ) from None
+        files.append(out / name)
+
+    put("summary.csv", lambda path: write_table(path, summary))
+    put("timing.csv", lambda path: write_table(path, timing))
     if experiment.pairs:
-        write_table(out / "paired.csv", paired_rows(records, experiment.pairs, experiment.metrics))
-        files.append(out / "paired.csv")
-    figure = atomic_write(out / experiment.figure, lambda tmp: write_figure(experiment, summary, tmp))
-    return ExperimentResult(out, summary, timing, ran, [*files, figure], notes)
+        put("paired.csv", lambda path: write_table(path, paired_rows(records, experiment.pairs, experiment.metrics)))
+    put(experiment.figure, lambda path: atomic_write(path, lambda tmp: write_figure(experiment, summary, tmp)))
+    return ExperimentResult(out, summary, timing, ran, files, notes)
 
 
 def summarise_folder(out: Path | str) -> ExperimentResult:

@@ -66,7 +66,7 @@ SWARM_METRICS: tuple[Metric, ...] = (
 def _values(text: str, what: str, top: int) -> tuple[int, ...]:
     out: list[int] = []
     for part in text.split(","):
-        m = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part)
+        m = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part, re.ASCII)
         if m is None:
             raise ConfigError(f"--grid: {what} {text!r} is not a list of whole numbers or ranges (e.g. 1-4 or 3,5)")
         a, b = int(m[1]), int(m[2] or m[1])

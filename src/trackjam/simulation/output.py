@@ -44,7 +44,9 @@ def check_out_dir(out: Path, scenario: Scenario) -> None:
         entries = [p.name for p in out.iterdir() if not _leftover(p)]
         if entries:
             previous = out / "scenario.yaml"
-            same = previous.is_file() and previous.read_text() == scenario_text(scenario)
+            text = scenario_text(scenario).encode()
+            # compared as bytes, size first: the file there may be binary, or huge
+            same = previous.is_file() and previous.stat().st_size == len(text) and previous.read_bytes() == text
             strangers = sorted(set(entries) - set(RUN_FILES))
             if not same or strangers:
                 what = "another scenario's run" if previous.is_file() else "other files"

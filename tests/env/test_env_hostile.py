@@ -1,0 +1,67 @@
+"""The environment's constructor and reset against a hostile caller: one exception naming the
+argument, at construction, instead of an AttributeError deep inside, a reward of -inf, or a
+replay that fails to write after the episode."""
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.env import parallel_env
+from trackjam.env.parallel import MAX_JAM_PENALTY
+
+FAST = ["steps=3", "filter.particles=200", "filter.birth_particles=50", "control.solver=greedy"]
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario("paper-fig3", FAST)
+
+
+@pytest.mark.parametrize("bad", ["paper-fig3", None, {"steps": 3}])
+def test_a_scenario_that_is_not_one_is_named(bad):
+    with pytest.raises(TypeError, match=r"^scenario: expected a Scenario .*got (str|NoneType|dict)$"):
+        parallel_env(bad)
+
+
+@pytest.mark.parametrize("bad", ["1", None, True, [1], float("nan"), float("inf"), -1.0, 1e308])
+def test_a_jam_penalty_that_is_not_a_bounded_number_is_named(scenario, bad):
+    with pytest.raises(ValueError, match=r"^jam_penalty: must be a number in \[0, 1e\+06\]"):
+        parallel_env(scenario, jam_penalty=bad)
+
+
+def test_the_largest_penalty_keeps_the_reward_finite_where_1e308_made_it_minus_inf(scenario):
+    env = parallel_env(scenario, jam_penalty=MAX_JAM_PENALTY)
+    env.reset(seed=1)
+    top = len(scenario.antenna.power_levels_db) - 1
+    _, rewards, *_ = env.step({a: np.array([0, top]) for a in env.agents})  # every agent at full power
+    assert all(np.isfinite(r) for r in rewards.values())
+
+
+@pytest.mark.parametrize(
+    "path, error, words",
+    [
+        (None, TypeError, "expected a file path, got NoneType"),
+        (5, TypeError, "expected a file path, got int"),
+        ("{tmp}", ValueError, "is a folder, not a file"),
+        ("{tmp}/missing/replay.html", ValueError, "missing is not an existing folder"),
+    ],
+)
+def test_a_replay_path_render_could_not_write_is_refused_at_construction(scenario, tmp_path, path, error, words):
+    path = path.format(tmp=tmp_path) if isinstance(path, str) else path
+    with pytest.raises(error, match=f"^replay_path: .*{words}"):
+        parallel_env(scenario, render_mode="replay", replay_path=path)
+
+
+def test_a_good_replay_path_is_written(scenario, tmp_path):
+    env = parallel_env(scenario, render_mode="replay", replay_path=str(tmp_path / "r.html"))
+    env.reset(seed=1)
+    env.step({a: np.array([0, 1]) for a in env.agents})
+    assert env.render() == tmp_path / "r.html" and (tmp_path / "r.html").stat().st_size > 0
+
+
+@pytest.mark.parametrize("seed", [2**63, 2**64, np.uint64(2**63 + 5)])
+def test_a_seed_past_the_scenarios_bound_is_refused(scenario, seed):
+    env = parallel_env(scenario)
+    with pytest.raises(ValueError, match=r"the seed must be an integer in \[0, 2\^63 - 1\]"):
+        env.reset(seed=seed)
+    env.reset(seed=2**63 - 1)

@@ -1,0 +1,113 @@
+"""`trackjam experiment` against a hostile user: counts whose plan or pool cannot fit the
+machine, options the swarm engine does not read, result names taken by folders. Each is one
+line naming the option, before anything is written; a write that fails late keeps what was
+written."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from sweep_helpers import ENV, SWEEP
+
+from trackjam.config.limits import MAX_TRIAL_RUNS, WORKER_BYTES, memory_budget
+from trackjam.errors import ConfigError, OutputError
+from trackjam.experiments.engine import run_experiment
+from trackjam.experiments.summary import trial_filename
+
+
+@pytest.mark.parametrize("trials", [10**12, MAX_TRIAL_RUNS // 2 + 1])
+def test_trials_whose_plan_would_not_end_are_refused_before_any_is_built(tmp_path, trials):
+    # constraints has 2 configurations: MAX_TRIAL_RUNS / 2 + 1 trials are one run past the cap
+    with pytest.raises(ConfigError, match=r"^--trials \d+: [\d,]+ trial runs \(2 configurations") as err:
+        run_experiment("constraints", **{**SWEEP, "trials": trials}, workers=1, out=tmp_path / "e")
+    assert "lower --trials" in str(err.value)
+    assert not (tmp_path / "e").exists()
+
+
+def test_the_cap_counts_configurations_and_trials():
+    from trackjam.config.limits import check_trial_runs
+
+    check_trial_runs(MAX_TRIAL_RUNS // 4, 4)
+    with pytest.raises(ConfigError):
+        check_trial_runs(MAX_TRIAL_RUNS // 4 + 1, 4)
+
+
+def test_a_pool_past_the_machine_is_refused_naming_workers(tmp_path):
+    too_many = int(memory_budget() // WORKER_BYTES) + 1
+    with pytest.raises(ConfigError, match=rf"^--workers {too_many}: .* use at most \d+$"):
+        run_experiment("constraints", **SWEEP, workers=too_many, out=tmp_path / "e")
+    assert not (tmp_path / "e").exists()
+
+
+def test_the_cli_refuses_a_million_workers_in_one_line(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps", "2",
+         "--workers", "1000000", "--out", str(tmp_path / "e")],
+        capture_output=True, text=True, env=ENV, timeout=120,
+    )
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("trackjam: error: --workers 1000000:")
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("item, key", [("comms.loss=0.3", "comms.loss"), ("comms.delay_steps=1", "comms.delay_steps"),
+                                       ("control.plan_over=belief", "control.plan_over")])
+def test_an_option_the_swarm_engine_does_not_read_is_refused_before_out_is_claimed(tmp_path, item, key):
+    # before: experiment.json and trials/ were written, then every trial failed in its worker
+    with pytest.raises(ConfigError, match=rf"^{key}: .* several targets"):
+        run_experiment("swarm", grid="2x2", trials=1, steps=2, workers=1, progress="none", out=tmp_path / "e",
+                       overrides=[item])
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.fixture(scope="module")
+def done(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("done")
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    return out
+
+
+@pytest.mark.parametrize("name", ["summary.csv", "timing.csv", "fig5.png"])
+def test_a_result_name_taken_by_a_folder_is_refused_up_front(done, tmp_path, name):
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    (out / name).unlink()
+    (out / name).mkdir()
+    before = {p.relative_to(out): p.stat().st_mtime_ns for p in out.rglob("*")}
+    with pytest.raises(ConfigError, match=rf"^--out {out}: {name} is a folder"):
+        run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert {p.relative_to(out): p.stat().st_mtime_ns for p in out.rglob("*")} == before
+
+
+def test_a_summary_that_cannot_be_written_late_is_one_line_and_keeps_the_trials(done, tmp_path, monkeypatch):
+    import trackjam.experiments.engine as engine
+
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    kept = (out / "summary.csv").read_bytes()
+
+    def full_disk(path, rows):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(engine, "write_table", full_disk)
+    with pytest.raises(OutputError, match=r"summary.csv: cannot be written \(No space left on device\); the trials"):
+        run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert (out / "summary.csv").read_bytes() == kept
+    assert len(list((out / "trials").iterdir())) == 4
+
+
+def test_a_trial_that_cannot_be_written_is_one_line_and_keeps_the_others(done, tmp_path):
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    last = out / "trials" / trial_filename(2, 1)  # configurations count from 1
+    last.unlink()
+    last.mkdir()  # a folder where the trial's file goes: read back as a stranger, then written over
+    with pytest.raises(OutputError, match=r"trial 1 of configuration 2 cannot be written \(Is a directory\); the 3 trials"):
+        run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert sorted(p.name for p in (out / "trials").iterdir() if p.is_file()) == sorted(
+        trial_filename(c, k) for c in (1, 2) for k in (0, 1) if (c, k) != (2, 1))

@@ -1,0 +1,71 @@
+"""The command line against a hostile user, beyond the one-target scenario: options the swarm
+engine does not read, an output folder holding a binary scenario.yaml, a bench --json into a
+folder nobody can write. One line on stderr naming the key or option, exit status 2, no
+traceback, nothing written."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+
+def _trackjam(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "trackjam", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def _one_line(r: subprocess.CompletedProcess) -> str:
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr
+    lines = [line for line in r.stderr.splitlines() if line.strip() and "warning" not in line]
+    assert len(lines) == 1, r.stderr
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    "item, key",
+    [
+        ("comms.loss=0.5", "comms.loss"),
+        ("comms.delay_steps=2", "comms.delay_steps"),
+        ("comms.failures=[{agent: 0, step: 3, mode: breakdown}]", "comms.failures"),
+        ("filter.visibility={hide: 0.1, reappear: 0.5}", "filter.visibility"),
+        ("control.plan_over=belief", "control.plan_over"),
+        ("fusion.existence=evidence", "fusion.existence"),
+    ],
+)
+def test_validate_refuses_what_the_swarm_engine_does_not_simulate_as_run_does(tmp_path, item, key):
+    line = _one_line(_trackjam("validate", "swarm-3", "--set", item))
+    assert line.startswith(f"trackjam: error: {key}:") and "several targets" in line
+    line = _one_line(_trackjam("run", "swarm-3", "--set", item, "--out", str(tmp_path / "out")))
+    assert f"{key}:" in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_same_options_stay_valid_with_one_target():
+    r = _trackjam("validate", "paper-fig3", "--set", "comms.loss=0.5")
+    assert r.returncode == 0 and r.stdout.startswith("ok")
+
+
+def test_an_out_folder_holding_a_binary_scenario_yaml_is_refused_and_kept(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "scenario.yaml").write_bytes(b"\xff\xfe\x00binary")
+    line = _one_line(_trackjam("run", "paper-fig3", "--set", "steps=1", "--out", str(out)))
+    assert "--out" in line and "another scenario's run" in line
+    assert (out / "scenario.yaml").read_bytes() == b"\xff\xfe\x00binary"
+    assert [p.name for p in out.iterdir()] == ["scenario.yaml"]
+
+
+# Linux's /proc and /sys refuse a new file even to root, for whom a chmod'ed folder is writable
+@pytest.mark.parametrize("folder", ["/proc", "/sys"])
+def test_bench_json_into_an_unwritable_folder_is_refused_before_the_benchmarks(folder):
+    r = _trackjam("bench", "--only", "env", "--quick", "--json", f"{folder}/bench.json")
+    line = _one_line(r)
+    assert line.startswith(f"trackjam: error: --json {folder}/bench.json: {folder} is not writable")
+    assert "running" not in r.stdout  # refused before a benchmark ran
+
+
+def test_a_grid_of_non_ascii_digits_is_refused(tmp_path):
+    line = _one_line(_trackjam("experiment", "swarm", "--grid", "\u0661x\u0663", "--out", str(tmp_path / "e")))
+    assert "--grid" in line and "whole numbers" in line
+    assert not (tmp_path / "e").exists()

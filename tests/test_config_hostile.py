@@ -1,0 +1,163 @@
+"""A hostile user's scenarios beyond the one-target engine's: several targets (the swarm
+engine's resources), the comms faults' integers, YAML aliases that expand without end, and a
+list of thousands of bad entries. Each is refused in one line naming the key, up front."""
+
+import time
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.config import limits
+from trackjam.config.limits import candidates_bound, estimate, measurements_bound
+from trackjam.config.loading import MAX_SHOWN, MAX_VALUES, _check_size
+from trackjam.errors import ConfigError
+
+SMALL = ["filter.particles=300", "filter.birth_particles=60", "steps=4"]
+
+
+def _refused(base: str, overrides: list[str]) -> str:
+    with pytest.raises(ConfigError) as err:
+        load_scenario(base, overrides)
+    message = str(err.value)
+    assert "\n" not in message
+    return message
+
+
+@pytest.mark.parametrize(
+    "overrides, key, words",
+    [
+        # one-target figures (the particles of one Bernoulli filter per agent) let these through,
+        # and the swarm engine then held a track of n particles per target on every agent
+        (["filter.particles=10000000"], "filter.particles", "memory"),
+        (["filter.particles=1000000"], "filter.particles", "operations"),
+        (["sensor.clutter_rate=1000"], "sensor.clutter_rate", "operations"),
+        (["filter.birth_particles=10000000"], "filter.birth_particles", "memory"),
+        # the plan's gains span min(K, 4) aims per agent: 16 times the one-target table
+        (["agents.n_inclination=40", "agents.n_azimuth=40", "agents.radial_steps=[1,2,3,4,5,6]"],
+         "agents.n_inclination", "memory"),
+    ],
+)
+def test_a_swarm_run_past_the_machine_is_refused_naming_the_key(overrides, key, words):
+    message = _refused("swarm-3", overrides)
+    assert message.startswith(f"--set {overrides[0]}: {key}:") and words in message
+
+
+def test_the_same_settings_with_one_target_still_pass():
+    # the swarm figures apply to the swarm engine only
+    load_scenario("paper-fig3", ["agents.n_inclination=40", "agents.n_azimuth=40",
+                                 "agents.radial_steps=[1,2,3,4,5,6]"])
+    load_scenario("paper-fig3", ["filter.particles=1000000"])
+
+
+def test_the_swarm_constants_mirror_the_engine():
+    from trackjam.estimation.lmb import LMBParams
+    from trackjam.simulation.build import LMB_BIRTH_RATE, lmb_params
+    from trackjam.simulation.swarm import MAX_AIMS
+
+    p = lmb_params(load_scenario("swarm-3"))
+    assert limits.MAX_TRACKS == p.max_tracks == LMBParams.max_tracks
+    # sum_j r_B(y_j) <= lambda_B and a birth below the pruning threshold is dropped
+    assert limits.MAX_BIRTHS == round(LMB_BIRTH_RATE / p.prune)
+    assert limits.MAX_AIMS == MAX_AIMS
+
+
+def test_the_particle_estimate_bounds_what_the_agents_hold_in_a_short_run():
+    from trackjam.simulation.swarm import SwarmSimulation
+
+    s = load_scenario("swarm-3", SMALL)
+    n_agents, m = s.n_agents, measurements_bound(s.sensor.clutter_rate)
+    bound = estimate(s)["memory_particles"][0] / (8.0 * 14 * n_agents)  # particles per agent
+    assert bound < 20 * s.filter.particles  # it is not the worst case of every track confirmed
+    sim = SwarmSimulation(s)
+    most = 0
+    while not sim.done:
+        sim.step()
+        for agent in sim.agents:
+            held = sum(len(t.X) for t in agent.filter.tracks) + sum(len(t.X) for t in agent.filter._births)
+            most = max(most, held)
+    assert 0 < most <= bound
+    assert m > 0
+
+
+def test_the_table_estimate_bounds_the_assignment_arrays():
+    from trackjam.control.assignment import build_assignment
+    from trackjam.simulation.build import build_swarm
+
+    s = load_scenario("swarm-3", SMALL)
+    c = build_swarm(s).base
+    n, k = s.n_agents, limits.MAX_AIMS
+    aims = np.array([[20.0, 20.0, 20.0], [75.0, 25.0, 40.0], [50.0, 80.0, 30.0], [40.0, 40.0, 40.0]])
+    problem = build_assignment(c.initial_positions, aims[:min(k, len(s.targets))], c.displacements, c.antenna,
+                               c.low, c.high, s.control.at_least, True)
+    held = problem.gain.nbytes + problem.pz.nbytes + sum(p.gain.nbytes + p.p_d.nbytes for p in problem.targets)
+    C = candidates_bound(len(s.agents.radial_steps), s.agents.n_inclination, s.agents.n_azimuth)
+    assert problem.n_slots <= C and problem.n_agents == n
+    assert held <= estimate(s)["memory_tables"][0]
+
+
+@pytest.mark.parametrize(
+    "item, key, words",
+    [
+        ("comms.delay_steps=true", "comms.delay_steps", "must be an integer, got bool"),
+        ('comms.delay_steps="2"', "comms.delay_steps", "must be an integer, got str"),
+        ("comms.delay_steps=1e308", "comms.delay_steps", "must be an integer, got float"),
+        ("comms.failures=[{agent: true, step: 1, mode: breakdown}]", "comms.failures.0.agent", "got bool"),
+        ('comms.failures=[{agent: "0", step: 1, mode: breakdown}]', "comms.failures.0.agent", "got str"),
+        ("comms.failures=[{agent: 0, step: 10000000000000000000000, mode: breakdown}]", "comms.failures.0.step",
+         "less than or equal to 100000"),
+        ("comms.failures=[{agent: 0, step: 1.0e+308, mode: breakdown}]", "comms.failures.0.step", "must be an integer"),
+    ],
+)
+def test_the_comms_integers_are_integers_within_bounds(item, key, words):
+    message = _refused("paper-fig3", [item])
+    assert f": {key}: " in message and words in message
+
+
+def test_too_many_failures_are_refused():
+    failures = ", ".join("{agent: 0, step: %d, mode: publisher}" % (k + 1) for k in range(1001))
+    assert "comms.failures: List should have at most 1000 items" in _refused("paper-fig3", [f"comms.failures=[{failures}]"])
+
+
+def _alias_bomb(levels: int) -> str:
+    lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 10)}]" for i in range(1, levels)]
+    return "\n".join(lines) + f"\ntargets: [*a{levels - 1}]\n"
+
+
+@pytest.mark.parametrize("where", ["file", "set"])
+def test_yaml_aliases_that_expand_to_billions_are_refused_at_once(tmp_path, where):
+    started = time.process_time()
+    if where == "file":
+        f = tmp_path / "bomb.yaml"
+        f.write_text(_alias_bomb(9))  # 10^9 values from 10 lines
+        message = _refused(str(f), [])
+        assert message.startswith(f"{f}: its aliases")
+    else:
+        value = "[&a [1,1,1,1,1,1,1,1,1,1], " + ", ".join(
+            f"&{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]" for i in range(7)) + "]"
+        message = _refused("paper-fig3", [f"targets={value}"])
+        assert message.startswith("--set targets: its aliases")
+    assert f"more than {MAX_VALUES:,} values" in message
+    assert time.process_time() - started < 60  # not a speed claim: the unchecked load never ended
+
+
+def test_the_size_count_stops_at_the_cap_and_counts_every_use_of_an_alias():
+    shared = list(range(10))
+    _check_size({"a": [shared] * 10})  # 1 + 1 + 10 * 11 values
+    with pytest.raises(Exception, match="more than"):
+        _check_size([[shared] * 1000] * 1000)  # 10^7 values as read, 1,011 objects
+
+
+def test_an_ordinary_alias_still_works(tmp_path):
+    f = tmp_path / "alias.yaml"
+    f.write_text("agents:\n  initial: &p [[1, 1, 1], [5, 5, 5], [9, 9, 9]]\n  initial_aim: [20, 20, 20]\n")
+    assert load_scenario(str(f)).agents.initial[1] == (5.0, 5.0, 5.0)
+
+
+def test_a_list_of_thousands_of_bad_entries_lists_a_few_and_counts_the_rest(tmp_path):
+    f = tmp_path / "many.yaml"
+    f.write_text("targets:\n" + "  - {id: 1, bogus: 2}\n" * 20000)
+    message = _refused(str(f), [])
+    assert message.count("unknown key") == MAX_SHOWN
+    assert message.endswith(f"and {20000 - MAX_SHOWN} more problems") and len(message) < 2000
