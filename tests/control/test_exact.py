@@ -124,6 +124,25 @@ def test_all_off_when_nobody_can_see_the_aim(antenna):
     assert sol.objective == 0 and np.all(sol.move == 0) and np.all(sol.level == 0)
 
 
+def test_placing_agents_one_by_one_accumulates_eq_13s_received_powers():
+    """recv[d, j] after placing agents 0..d is the power agent j receives from the others of 0..d."""
+    from trackjam.control.exact import _place
+    from trackjam.control.objective import received_interference
+
+    rng = np.random.default_rng(6)
+    for _ in range(30):
+        N, C = int(rng.integers(1, 6)), 4
+        gain = rng.uniform(0, 1, (N, N, C, C))
+        gain[np.arange(N), np.arange(N)] = 0.0  # an agent does not jam itself
+        levels_w = np.array([0.0, 0.5, 1.0, 2.0])
+        c, lv = rng.integers(0, C, N), rng.integers(0, 4, N)
+        recv = np.full((N, N), np.nan)
+        for d in range(N):
+            _place(d, gain, levels_w, c, lv, recv)
+            ref = received_interference(gain[: d + 1, : d + 1], levels_w, c[: d + 1], lv[: d + 1])
+            assert np.allclose(recv[d, : d + 1], ref, rtol=1e-12, atol=0)
+
+
 def test_xi_is_linear_in_one_agents_p_d_with_the_kernels_coefficients():
     """The bound of a pair costs S multiply-adds: Xi = A + B p_D^d, A and B from the others."""
     from trackjam.control.exact import _others_dp

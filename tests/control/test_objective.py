@@ -6,7 +6,12 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from trackjam.control.objective import at_least_probability, kernel_at_least, received_interference
+from trackjam.control.objective import (
+    at_least_probability,
+    kernel_add_detector,
+    kernel_at_least,
+    received_interference,
+)
 
 
 def xi_paper(p, m):
@@ -33,6 +38,24 @@ def test_at_least_equals_sum_of_paper_xi(p, n):
     assert np.isclose(at_least_probability(p, n), expected, rtol=1e-12, atol=1e-14)
     q = np.empty(n + 1)
     assert np.isclose(kernel_at_least(np.array(p), n, q), expected, rtol=1e-12, atol=1e-14)
+
+
+def test_adding_detectors_one_by_one_gives_the_truncated_count_law():
+    """q[m] = P(exactly m detect) for m < n and q[n] = P(at least n), by brute force over who detects."""
+    rng = np.random.default_rng(8)
+    for _ in range(40):
+        N = int(rng.integers(1, 6))
+        n = int(rng.integers(1, N + 1))
+        p = rng.uniform(0, 1, N)
+        q = np.zeros(n + 1)
+        q[0] = 1.0
+        for x in p:
+            kernel_add_detector(q, n, x)
+        exactly = np.zeros(N + 1)
+        for seen in itertools.product([0, 1], repeat=N):
+            exactly[sum(seen)] += np.prod([p[j] if seen[j] else 1 - p[j] for j in range(N)])
+        assert np.allclose(q[:n], exactly[:n], rtol=1e-12, atol=1e-15)
+        assert np.isclose(q[n], exactly[n:].sum(), rtol=1e-12, atol=1e-15)
 
 
 def test_kernel_equals_numpy_bit_for_bit():

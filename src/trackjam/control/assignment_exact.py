@@ -40,8 +40,6 @@ The tests hold the kernel to a plain-numpy enumeration of every choice in this o
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from numba import njit
 
@@ -52,8 +50,14 @@ from trackjam.control.assignment_problem import (
     kernel_targets_value,
     to_assignment_solution,
 )
-from trackjam.control.exact import BranchAndBound, _first_admissible, _pair_row, pair_order
-from trackjam.control.objective import kernel_feasible
+from trackjam.control.exact import (
+    ChunkedSearch,
+    _first_admissible,
+    _pair_row,
+    _place,
+    pair_order,
+)
+from trackjam.control.objective import kernel_add_detector, kernel_feasible
 
 
 COVER_SLACK = 1e-12  # added to the coverage bound: its products are rounded unlike the objective's recursion
@@ -74,15 +78,6 @@ def _tail(q, n, t):
     for m in range(t, n):
         acc += q[m]
     return acc
-
-
-@njit(cache=True)
-def _add(q, n, x):
-    """One more agent detecting with probability ``x`` in the truncated count law ``q``."""
-    q[n] += q[n - 1] * x
-    for m in range(n - 1, 0, -1):
-        q[m] = q[m] * (1.0 - x) + q[m - 1] * x
-    q[0] *= 1.0 - x
 
 
 @njit(cache=True)
@@ -118,7 +113,7 @@ def _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R, H):
         m = 0
         for j in range(d):
             if tg[j] == k:
-                _add(q, n, pp[j])
+                kernel_add_detector(q, n, pp[j])
                 m += 1
         nb = 0
         for j in range(d + 1, N):
@@ -137,7 +132,7 @@ def _tables(d, n, kind, ps, blk, tg, pp, bptr, A, B, R, H):
                 B[d, k, a] = 0.0
                 continue
             if a > 0:
-                _add(q, n, b[a - 1])
+                kernel_add_detector(q, n, b[a - 1])
             W[k, a] = 0.0 if m + a == 0 else _tail(q, n, min(n, m + a))
             t = min(n, m + a + 1)
             A[d, k, a] = _tail(q, n, t)
@@ -229,11 +224,7 @@ def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent,
             pp[d] = ps[d, r]
             pair[d] = rank_pair[d, r]
             if constrained:
-                inc = 0.0
-                for j in range(d):
-                    inc += levels_w[lv[j]] * gain[d, j, c[d], c[j]]
-                    recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
-                recv[d, d] = inc
+                _place(d, gain, levels_w, c, lv, recv)
             if d == N - 1:
                 for j in range(N):
                     op[agent[j]] = pair[j]
@@ -246,8 +237,7 @@ def kernel_assignment_bb(pz, gain, levels_w, delta, n, kind, constrained, agent,
                 cur[d] = end  # later pairs of the block have lower or equal p_D
                 continue
             if constrained and not have[d, r]:
-                _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows)
-                have[d, r] = True
+                _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows, have)
             dead = False
             for j in range(d + 1, N):
                 alive = False
@@ -310,7 +300,7 @@ def agent_order(problem: AssignmentProblem) -> np.ndarray:
 INCUMBENT_MARGIN = 1e-9  # the constructed plan's value is lowered by this (relative) before the search
 
 
-class AssignmentSearch:
+class AssignmentSearch(ChunkedSearch):
     """One exact search over an :class:`AssignmentProblem`, run in chunks; ``incumbent=False``
     starts it from every agent hovering at level 0 alone (the module docstring)."""
 
@@ -336,30 +326,20 @@ class AssignmentSearch:
                 self.rank_pair[d, k * b:(k + 1) * b] = o
                 self.ps[d, k * b:(k + 1) * b] = problem.pz[k, i, o]
         constrained = problem.constraints
-        W = (P + 63) // 64 if constrained else 1
-        self.rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
-        self.have = np.zeros((N, P), dtype=np.bool_)
-        self.c = np.zeros(N, dtype=np.int64)
-        self.lv = np.zeros(N, dtype=np.int64)
-        self.rank = np.zeros(N, dtype=np.int64)
         self.tg = np.zeros(N, dtype=np.int64)
         self.pp = np.zeros(N)
         self.pair = np.zeros(N, dtype=np.int64)
-        self.recv = np.zeros((N, N))
         self.bptr = np.zeros((N + 1, N, K), dtype=np.int64)
         self.bptr[0] = np.arange(K)[None, :] * self.blk[:, None]
-        self.cur = np.zeros(N, dtype=np.int64)
         self.A = np.zeros((N, K, N))
         self.B = np.zeros((N, K, N))
         self.R = np.zeros((N, K, N))
         self.H = np.zeros((N, K + 1))
         self.best_pair = np.zeros(N, dtype=np.int64)
         self.best_target = np.zeros(N, dtype=np.int64)
-        self.state = np.zeros(2, dtype=np.int64)
         start = kernel_start(problem.pz, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
                              problem.kind, constrained, N)
-        self.best_value = np.array([start])
-        self.finished = False
+        self._init_placement(N, P, constrained, start)
         if incumbent:
             pair, target = np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.int64)
             v = kernel_incumbent(problem.pz, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
@@ -370,30 +350,15 @@ class AssignmentSearch:
                 self.best_pair[:] = pair
                 self.best_target[:] = target
 
-    @property
-    def nodes(self) -> int:
-        return int(self.state[1])
-
-    @property
-    def value(self) -> float:
-        return float(self.best_value[0])
-
-    def step(self, max_nodes: int) -> bool:
-        """Run at most ``max_nodes`` more nodes (all when <= 0); True when the search is done."""
+    def _advance(self, max_nodes: int) -> bool:
         P = self.problem
-        if not self.finished:
-            self.finished = bool(kernel_assignment_bb(
-                P.pz, self.gain, P.levels_w, P.delta_w, P.at_least, P.kind, P.constraints, self.agent, self.ps,
-                self.rank_c, self.rank_l, self.rank_pair, self.blk, self.n_pairs, self.rows, self.have,
-                self.c, self.lv, self.rank, self.tg, self.pp, self.pair, self.recv, self.bptr, self.cur,
-                self.A, self.B, self.R, self.H, self.best_pair, self.best_target, self.state, self.best_value,
-                int(max_nodes),
-            ))
-        return self.finished
-
-    # the one-target search's chunked loop under a time or node budget: it needs only
-    # ``nodes``, ``finished`` and ``step()``
-    run = BranchAndBound.run
+        return kernel_assignment_bb(
+            P.pz, self.gain, P.levels_w, P.delta_w, P.at_least, P.kind, P.constraints, self.agent, self.ps,
+            self.rank_c, self.rank_l, self.rank_pair, self.blk, self.n_pairs, self.rows, self.have,
+            self.c, self.lv, self.rank, self.tg, self.pp, self.pair, self.recv, self.bptr, self.cur,
+            self.A, self.B, self.R, self.H, self.best_pair, self.best_target, self.state, self.best_value,
+            max_nodes,
+        )
 
     def open_bound(self) -> float:
         """Largest bound of any branch not yet explored (-inf when none is left): at every depth
@@ -418,9 +383,8 @@ class AssignmentSearch:
     def solution(self) -> AssignmentSolution:
         """The incumbent, with whether it is proven optimal and its certified gap."""
         L = self.problem.n_levels
-        sol = to_assignment_solution(self.problem, self.best_pair // L, self.best_pair % L, self.best_target)
-        gap = max(self.open_bound() - self.value, 0.0)
-        return dataclasses.replace(sol, optimal=gap == 0.0, gap=gap, nodes=self.nodes)
+        return self._certified(to_assignment_solution(self.problem, self.best_pair // L, self.best_pair % L,
+                                                      self.best_target))
 
 
 def solve_assignment_exact(problem: AssignmentProblem, time_limit_s: float | None = None,

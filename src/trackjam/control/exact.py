@@ -33,6 +33,7 @@ path; the largest of their bounds minus the incumbent's value is the certified g
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import itertools
 import time
@@ -40,7 +41,14 @@ import time
 import numpy as np
 from numba import njit
 
-from trackjam.control.objective import evaluate, mean_at_least, kernel_at_least, kernel_feasible, to_solution
+from trackjam.control.objective import (
+    evaluate,
+    kernel_add_detector,
+    kernel_at_least,
+    kernel_feasible,
+    mean_at_least,
+    to_solution,
+)
 from trackjam.control.problem import Problem, Solution
 
 #: wall time a chunk of the search aims at [s]: Ctrl-C and the clock are checked between chunks
@@ -98,9 +106,13 @@ def _admissible(k, ck, lk, d, gain, levels_w, delta, c, lv, recv):
 
 
 @njit(cache=True)
-def _pair_row(j, rj, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows):
+def _pair_row(j, rj, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows, have):
     """Bitsets ``rows[j, rj, k]`` (k > j): ranks of agent k compatible, pair by pair, with
-    agent j at rank rj (neither puts delta or more on the other)."""
+    agent j at rank rj (neither puts delta or more on the other); built once, the first time
+    they are needed (``have[j, rj]`` records it)."""
+    if have[j, rj]:
+        return
+    have[j, rj] = True
     N = n_pairs.shape[0]
     cj = rank_c[j, rj]
     wj = levels_w[rank_l[j, rj]]
@@ -134,6 +146,17 @@ def _first_admissible(k, start, d, rank, rank_c, rank_l, n_pairs, rows, gain, le
             m &= m - _ONE
         w += 1
     return n_pairs[k]
+
+
+@njit(cache=True, inline="always")
+def _place(d, gain, levels_w, c, lv, recv):
+    """Agent d, now at (c[d], lv[d]), joins agents 0..d-1 in the received powers: recv[d, j] is
+    what agent j receives from agents 0..d, recv[d, d] what agent d receives from 0..d-1."""
+    inc = 0.0
+    for j in range(d):
+        inc += levels_w[lv[j]] * gain[d, j, c[d], c[j]]
+        recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
+    recv[d, d] = inc
 
 
 @njit(cache=True)
@@ -174,11 +197,7 @@ def _others_dp(d, n, p, smax, bptr, AB):
         for j in range(N):
             if j == d:
                 continue
-            pj = p[s, j] if j < d else smax[s, j, bptr[d, j]]
-            q[n] += q[n - 1] * pj
-            for m in range(n - 1, 0, -1):
-                q[m] = q[m] * (1.0 - pj) + q[m - 1] * pj
-            q[0] *= 1.0 - pj
+            kernel_add_detector(q, n, p[s, j] if j < d else smax[s, j, bptr[d, j]])
         AB[d, s, 0] = q[n]
         AB[d, s, 1] = q[n - 1]
 
@@ -242,11 +261,7 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
             for s in range(S):
                 p[s, d] = ps[s, d, r]
             if constrained:
-                inc = 0.0
-                for j in range(d):
-                    inc += levels_w[lv[j]] * gain[d, j, c[d], c[j]]
-                    recv[d, j] = recv[d - 1, j] + levels_w[lv[d]] * gain[j, d, c[j], c[d]]
-                recv[d, d] = inc
+                _place(d, gain, levels_w, c, lv, recv)
             if d == N - 1:
                 value = kernel_mean_xi(p, w, n, q)
                 if value > best:
@@ -258,8 +273,7 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
                     break
                 continue
             if constrained and not have[d, r]:
-                _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows)
-                have[d, r] = True
+                _pair_row(d, r, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows, have)
             dead = False
             for k in range(d + 1, N):
                 rr = bptr[d, k]
@@ -292,39 +306,35 @@ def kernel_branch_and_bound(w, gain, levels_w, delta, n, constrained, ps, smax, 
     return True
 
 
-class BranchAndBound:
-    """One exact search over a :class:`Problem`, run in chunks (see the module docstring)."""
+class ChunkedSearch(abc.ABC):
+    """A branch and bound run in chunks under a time or node budget (the module docstring). A
+    subclass builds its state (with :meth:`_init_placement`), runs its kernel for at most
+    ``max_nodes`` more nodes in ``_advance`` and bounds the branches left in ``open_bound``."""
 
-    def __init__(self, problem: Problem):
-        self.problem = problem
-        N, C, L = problem.p_d.shape
-        p_s, self.w = problem.objective_tables()
-        order, self.n_pairs = pair_order(problem)
-        P = order.shape[1]
-        valid = order >= 0
-        self.rank_c = np.where(valid, order // L, 0)
-        self.rank_l = np.where(valid, order % L, 0)
-        self.ps = np.ascontiguousarray(p_s[:, np.arange(N)[:, None], self.rank_c, self.rank_l] * valid)
-        self.smax = np.ascontiguousarray(np.maximum.accumulate(self.ps[..., ::-1], axis=-1)[..., ::-1])
-        constrained = problem.constraints
+    def _init_placement(self, n_agents: int, n_ranks: int, constrained: bool, start: float) -> None:
+        """The state every search keeps while it places agents: the pairwise-compatibility
+        bitsets of forward checking (built lazily), the placed agents' candidates, levels and
+        ranks, the powers they receive, each depth's next rank, and the incumbent's value."""
+        N, P = n_agents, n_ranks
         W = (P + 63) // 64 if constrained else 1
         self.rows = np.zeros((N if constrained else 1, P if constrained else 1, N, W), dtype=np.uint64)
         self.have = np.zeros((N, P), dtype=np.bool_)
         self.c = np.zeros(N, dtype=np.int64)
         self.lv = np.zeros(N, dtype=np.int64)
         self.rank = np.zeros(N, dtype=np.int64)
-        self.p = np.zeros((p_s.shape[0], N))
         self.recv = np.zeros((N, N))  # recv[d, j]: power at agent j from agents 0..d
-        self.bptr = np.zeros((N + 1, N), dtype=np.int64)  # first admissible rank of k given 0..d-1
         self.cur = np.zeros(N, dtype=np.int64)
-        self.AB = np.zeros((N, p_s.shape[0], 2))  # per depth and sample: Xi = A + B p_D (see _others_dp)
-        self.best_cand = np.zeros(N, dtype=np.int64)
-        self.best_level = np.zeros(N, dtype=np.int64)
-        self.state = np.zeros(2, dtype=np.int64)
-        start = kernel_start_value(p_s, self.w, problem.gain, problem.levels_w, problem.delta_w,
-                                   problem.at_least, constrained, self.best_cand, self.best_level)
+        self.state = np.zeros(2, dtype=np.int64)  # [depth, nodes visited]
         self.best_value = np.array([start])
         self.finished = False
+
+    @abc.abstractmethod
+    def _advance(self, max_nodes: int) -> bool:
+        """Run the kernel for at most ``max_nodes`` more nodes (all when <= 0); True when done."""
+
+    @abc.abstractmethod
+    def open_bound(self) -> float:
+        """Largest bound of any branch not yet explored (-inf when none is left)."""
 
     @property
     def nodes(self) -> int:
@@ -337,14 +347,8 @@ class BranchAndBound:
 
     def step(self, max_nodes: int) -> bool:
         """Run at most ``max_nodes`` more nodes (all when <= 0); True when the search is done."""
-        P = self.problem
         if not self.finished:
-            self.finished = bool(kernel_branch_and_bound(
-                self.w, P.gain, P.levels_w, P.delta_w, P.at_least, P.constraints, self.ps, self.smax,
-                self.rank_c, self.rank_l, self.n_pairs, self.rows, self.have, self.c, self.lv, self.rank,
-                self.p, self.recv, self.bptr, self.cur, self.AB, self.best_cand, self.best_level, self.state,
-                self.best_value, int(max_nodes),
-            ))
+            self.finished = bool(self._advance(int(max_nodes)))
         return self.finished
 
     def run(self, time_limit_s: float | None = None, node_limit: int = 0) -> bool:
@@ -372,6 +376,45 @@ class BranchAndBound:
             rate = chunk / max(now - t0, 1e-6)
             chunk = int(min(max(rate * aim, 64), 1 << 26))
 
+    def _certified(self, sol):
+        """``sol`` (the incumbent) with whether it is proven optimal and the certified gap: the
+        largest open bound minus its value (0 when proven)."""
+        gap = max(self.open_bound() - self.value, 0.0)
+        return dataclasses.replace(sol, optimal=gap == 0.0, gap=gap, nodes=self.nodes)
+
+
+class BranchAndBound(ChunkedSearch):
+    """One exact search over a :class:`Problem`, run in chunks (see the module docstring)."""
+
+    def __init__(self, problem: Problem):
+        self.problem = problem
+        N, C, L = problem.p_d.shape
+        p_s, self.w = problem.objective_tables()
+        order, self.n_pairs = pair_order(problem)
+        P = order.shape[1]
+        valid = order >= 0
+        self.rank_c = np.where(valid, order // L, 0)
+        self.rank_l = np.where(valid, order % L, 0)
+        self.ps = np.ascontiguousarray(p_s[:, np.arange(N)[:, None], self.rank_c, self.rank_l] * valid)
+        self.smax = np.ascontiguousarray(np.maximum.accumulate(self.ps[..., ::-1], axis=-1)[..., ::-1])
+        self.p = np.zeros((p_s.shape[0], N))
+        self.bptr = np.zeros((N + 1, N), dtype=np.int64)  # first admissible rank of k given 0..d-1
+        self.AB = np.zeros((N, p_s.shape[0], 2))  # per depth and sample: Xi = A + B p_D (see _others_dp)
+        self.best_cand = np.zeros(N, dtype=np.int64)
+        self.best_level = np.zeros(N, dtype=np.int64)
+        start = kernel_start_value(p_s, self.w, problem.gain, problem.levels_w, problem.delta_w,
+                                   problem.at_least, problem.constraints, self.best_cand, self.best_level)
+        self._init_placement(N, P, problem.constraints, start)
+
+    def _advance(self, max_nodes: int) -> bool:
+        P = self.problem
+        return kernel_branch_and_bound(
+            self.w, P.gain, P.levels_w, P.delta_w, P.at_least, P.constraints, self.ps, self.smax,
+            self.rank_c, self.rank_l, self.n_pairs, self.rows, self.have, self.c, self.lv, self.rank,
+            self.p, self.recv, self.bptr, self.cur, self.AB, self.best_cand, self.best_level, self.state,
+            self.best_value, max_nodes,
+        )
+
     def open_bound(self) -> float:
         """Largest bound of any branch not yet explored (-inf when none is left)."""
         if self.finished:
@@ -393,9 +436,7 @@ class BranchAndBound:
     def solution(self) -> Solution:
         """The incumbent as a :class:`Solution`, with whether it is proven optimal and the
         certified gap: the largest open bound minus its value (0 when proven)."""
-        sol = to_solution(self.problem, self.best_cand, self.best_level)
-        gap = max(self.open_bound() - self.value, 0.0)
-        return dataclasses.replace(sol, optimal=gap == 0.0, gap=gap, nodes=self.nodes)
+        return self._certified(to_solution(self.problem, self.best_cand, self.best_level))
 
 
 def solve_exact(problem: Problem, time_limit_s: float | None = None, node_limit: int = 0) -> Solution:

@@ -13,8 +13,9 @@ Planning over the belief averages Xi over weighted samples of the target's posit
 sum_s w_s Xi(p_D at x_s) (:func:`mean_at_least`, accumulated in sample order so that the
 compiled solvers reproduce it bit for bit; one sample of weight 1 is Xi itself).
 
-``kernel_at_least`` and ``kernel_feasible`` are the compiled twins used inside the solvers;
-``at_least_probability`` and ``received_interference`` are the numpy references.
+``kernel_at_least`` (its step, ``kernel_add_detector``, also serves the exact solvers' bounds)
+and ``kernel_feasible`` are the compiled twins used inside the solvers; ``at_least_probability``
+and ``received_interference`` are the numpy references.
 """
 
 from __future__ import annotations
@@ -45,6 +46,16 @@ def at_least_probability(p, n: int) -> np.ndarray:
 
 
 @njit(cache=True)
+def kernel_add_detector(q, n, x):
+    """One more agent detecting with probability ``x`` in the truncated count law ``q`` (q[m]
+    = P(exactly m) for m < n, q[n] = P(at least n)), in place: the step of the programme."""
+    q[n] += q[n - 1] * x
+    for m in range(n - 1, 0, -1):
+        q[m] = q[m] * (1.0 - x) + q[m - 1] * x
+    q[0] *= 1.0 - x
+
+
+@njit(cache=True)
 def kernel_at_least(p, n, q):
     """Compiled twin of :func:`at_least_probability` for one vector ``p`` (N,); ``q`` is a
     work buffer of length >= n + 1."""
@@ -57,11 +68,7 @@ def kernel_at_least(p, n, q):
     for m in range(1, n + 1):
         q[m] = 0.0
     for j in range(N):
-        pj = p[j]
-        q[n] += q[n - 1] * pj
-        for m in range(n - 1, 0, -1):
-            q[m] = q[m] * (1.0 - pj) + q[m - 1] * pj
-        q[0] *= 1.0 - pj
+        kernel_add_detector(q, n, p[j])
     return q[n]
 
 
