@@ -11,7 +11,15 @@ import pytest
 from scipy.special import logsumexp
 
 from trackjam.config import load_scenario
-from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams, Scan, bernoulli_update
+from trackjam.estimation.bernoulli import (
+    BernoulliFilter,
+    FilterParams,
+    Scan,
+    bernoulli_update,
+    mix_visibility,
+    posterior_existence,
+    posterior_visibility,
+)
 from trackjam.estimation.birth import UniformBirth
 from trackjam.estimation.kernels import GATE
 from trackjam.estimation.lmb import (
@@ -77,6 +85,40 @@ def test_one_track_is_the_bernoulli_filter(method, r, Z):
     np.testing.assert_allclose(np.exp(post.log_w), np.exp(log_post), atol=1e-12)
     np.testing.assert_allclose(beta.sum(), 1.0)
     assert r_U.shape == (len(Z),)
+
+
+@pytest.mark.parametrize("method", ["gibbs", "ranked"])
+@pytest.mark.parametrize("nu", [0.0, 0.3, 0.9])
+@pytest.mark.parametrize("Z", [
+    np.zeros((0, 3)),                                             # a miss
+    h(X_HAND[1], U)[None, :],                                     # a detection on the track
+    np.vstack([h(X_HAND[0], U) + [0.5, 0.03, -0.02], [30.0, 2.0, 2.5]]),  # a detection and clutter
+])
+def test_one_hidden_track_is_the_bernoulli_filter_with_a_hidden_mode(method, nu, Z):
+    """K = 1 under the hidden-target mode: the LMB update of a track with P(visible) = nu
+    gives the Bernoulli filter's L'_i = nu L_i + (1 - nu), its existence and spatial density,
+    and P(visible) = nu V / (nu V + 1 - nu), V = sum_i w_i L_i."""
+    r = 0.6
+    log_L = scan(Z).log_factors(X_HAND, ANT, SIGMA, LOG_KAPPA)
+    log_joint = np.log(W_HAND) + mix_visibility(log_L, nu)
+    e = posterior_existence(r, float(logsumexp(log_joint)))
+    visible = posterior_visibility(nu, float(logsumexp(np.log(W_HAND) + log_L)))
+    track = Track((1, 0), r, X_HAND, np.log(W_HAND), nu=nu)
+    (post,), _, _ = lmb_update([track], scan(Z), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0), method)
+    assert post.r == pytest.approx(e, rel=1e-10)
+    assert post.nu == pytest.approx(visible, rel=1e-10, abs=1e-12)
+    np.testing.assert_allclose(np.exp(post.log_w), np.exp(log_joint - logsumexp(log_joint)), atol=1e-12)
+
+
+def test_hidden_mode_prediction_is_the_markov_chain():
+    """predict(): nu <- (1 - hide) nu + reappear (1 - nu) per track; without the mode nu stays 1."""
+    f = LMBFilter(params(particles=4, birth_particles=4, visibility=(0.05, 0.25)), ANT, np.random.default_rng(0))
+    f.tracks = [Track((1, 0), 0.9, X_HAND.copy(), np.log(W_HAND), nu=0.4)]
+    (est,) = f.predict()
+    assert est.visible == pytest.approx(0.95 * 0.4 + 0.25 * 0.6)
+    g = LMBFilter(params(particles=4, birth_particles=4), ANT, np.random.default_rng(0))
+    g.tracks = [Track((1, 0), 0.9, X_HAND.copy(), np.log(W_HAND))]
+    assert g.predict()[0].visible == 1.0
 
 
 @pytest.mark.parametrize("r", [0.1, 0.6])

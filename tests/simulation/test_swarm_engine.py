@@ -207,6 +207,48 @@ def test_a_cluster_is_fused_from_the_members_whose_cone_reached_it():
         assert g is team[0]
 
 
+def test_a_fused_tracks_visibility_is_its_members_mean():
+    from trackjam.estimation.lmb import TrackEstimate
+    from trackjam.estimation.lmb_fusion import fuse_tracks
+    from trackjam.simulation.swarm import visible
+
+    def tr(nu, x):
+        return TrackEstimate((0, 0), 0.9, np.r_[x, 0.0, 0.0, 0.0], np.eye(6), nu)
+
+    own = [[tr(0.2, [10.0, 10, 10])], [tr(0.6, [10.5, 10, 10])], []]
+    (f,) = fuse_tracks(own)
+    assert visible(f, own) == pytest.approx(0.4)
+
+
+def test_the_hidden_target_mode_reaches_every_filter_and_the_report_needs_a_visible_track(monkeypatch):
+    """filter.visibility on the swarm engine: each agent's LMB filter runs the mode, and a
+    confirmed track is reported only while existence x P(visible) > 0.5 (the one-target rule);
+    target a, hidden from step 3 on, is then withheld while its track stays confirmed."""
+    import trackjam.simulation.swarm as swarm
+
+    judged = []
+    visible = swarm.visible
+
+    def spy(track, own):
+        v = visible(track, own)
+        judged.append((swarm.track_label(track), track.estimate.existence * v > 0.5))
+        return v
+
+    monkeypatch.setattr(swarm, "visible", spy)
+    sim = SwarmSimulation(two_targets("steps=8", "control.solver=greedy", "filter.visibility={hide: 0.05, reappear: 0.25}",
+                                      "targets=[{id: a, initial: [20, 20, 20, 1.5, 2.0, 1.7], occlusions: [[3, 8]]},"
+                                      " {id: b, initial: [60, 60, 60, -1, 0, 0]}]"))
+    assert all(a.filter.p.visibility == (0.05, 0.25) for a in sim.agents)
+    withheld = []
+    for _ in range(8):
+        judged.clear()
+        r = sim.step()
+        assert set(r.tracks["track"]) == {label for label, ok in judged if ok}
+        withheld += [r.t for _, ok in judged if not ok]
+    # the filters keep target a's track confirmed while they believe it hidden, and it is not reported
+    assert withheld and min(withheld) >= 3
+
+
 @pytest.mark.parametrize("share", ["posteriors", "scans"])
 def test_under_share_scans_every_agent_updates_on_every_teammates_scan(share, monkeypatch):
     """fusion.share: scans hands each filter the N - 1 teammates' scans of the step, each taken

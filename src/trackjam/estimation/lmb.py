@@ -14,6 +14,11 @@ sampling or a ranked assignment), then the LMB approximation per track:
 
 (<f>_i = ∫ f s_i). With one track this is the Bernoulli update of Section V-A exactly.
 
+Hidden-target mode (ours, ``visibility``): each track also carries nu = P(visible | it exists),
+predicted by the two-state chain nu <- (1 - hide) nu + reappear (1 - nu); the update uses
+nu p_D(x) for p_D(x) and leaves nu' = [sum_j beta[i, 1 + j] + m_i nu <1 - p_D>_i /
+<1 - nu p_D>_i] / r_i', m_i the exists-and-missed share of r_i' (:func:`posterior_visible`).
+
 Adaptive birth (Reuter et al., Sec. IV-A): measurement y_j of the scan at t starts a track that
 enters at t + 1 with existence min(r_B^max, lambda_B (1 - r_U(y_j)) / sum_y (1 - r_U(y))),
 r_U(y_j) = sum_i beta[i, 1 + j] the probability that y_j was some track's. Its density is that
@@ -81,6 +86,7 @@ class LMBParams:
     association: str = "gibbs"  # "gibbs" | "ranked"
     gibbs_samples: int = 1000  # Gibbs sweeps per update
     ranked_k: int = 200  # hypotheses of the ranked assignment
+    visibility: tuple[float, float] | None = None  # (hide, reappear) per step: the hidden-target mode; None: always visible
 
     def __post_init__(self):
         if self.association not in ("gibbs", "ranked"):
@@ -91,18 +97,22 @@ class LMBParams:
             raise ValueError("birth_existence_max must lie in (0, 1) and survival_prob in [0, 1]")
         if min(self.particles, self.birth_particles, self.max_tracks, self.gibbs_samples, self.ranked_k) < 1:
             raise ValueError("particle counts, max_tracks, gibbs_samples and ranked_k must be positive")
+        if self.visibility is not None and not all(0.0 <= q <= 1.0 for q in self.visibility):
+            raise ValueError(f"visibility (hide, reappear) must lie in [0, 1], got {self.visibility!r}")
 
 
 @dataclass(frozen=True)
 class Track:
     """One Bernoulli component: label (birth step, index), existence r, particles ``X`` (n, 6)
-    and their normalised log-weights; ``confirmed`` once r has exceeded 0.5 after an update."""
+    and their normalised log-weights; ``confirmed`` once r has exceeded 0.5 after an update;
+    ``nu`` P(visible | it exists) under the hidden-target mode (1 without it)."""
 
     label: tuple[int, int]
     r: float
     X: np.ndarray
     log_w: np.ndarray
     confirmed: bool = False
+    nu: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -113,6 +123,7 @@ class TrackEstimate:
     existence: float
     mean: np.ndarray  # (6,)
     cov: np.ndarray  # (6, 6)
+    visible: float = 1.0  # P(visible | it exists) under the hidden-target mode; 1 without it
 
 
 @dataclass(frozen=True)
@@ -147,9 +158,11 @@ def track_factors(track: Track, scan: Scan, ant: AntennaModel, noise_std, log_ka
             X, scan.Z, scan.u, scan.axis, scan.p_d_scale, ant.height, ant.tan_half, ant.r0, ant.n_e,
             np.asarray(noise_std, dtype=float), float(log_kappa),
         )
-    with np.errstate(divide="ignore"):  # p_D = 1 leaves no miss
+    if track.nu < 1.0:  # hidden-target mode: a particle is seen with probability nu p_D
+        p_d = track.nu * p_d
+    with np.errstate(divide="ignore"):  # p_D = 1 leaves no miss; nu = 0 no detection
         log_miss = np.log1p(-np.minimum(p_d, 1.0))
-    log_p_d = np.log(p_d)
+        log_p_d = np.log(p_d)
     log_mean = kernel_log_means(track.log_w, seen, log_miss, log_p_d, log_g)
     log_r = math.log(track.r) if track.r > 0.0 else -np.inf
     log_not = math.log1p(-track.r) if track.r < 1.0 else -np.inf
@@ -175,7 +188,22 @@ def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
     usable = np.isfinite(log_coef) & np.isfinite(log_mean)
     coef = np.where(usable, log_coef - np.where(usable, log_mean, 0.0), -np.inf)
     log_post = kernel_mixture_log_weights(track.log_w, f.seen, f.log_miss, f.log_p_d, f.log_g, coef)
-    return replace(track, r=min(r_new, 1.0), log_w=log_post)
+    return replace(track, r=min(r_new, 1.0), log_w=log_post, nu=posterior_visible(track.nu, log_coef, log_mean[0]))
+
+
+def posterior_visible(nu: float, log_coef: np.ndarray, log_miss_mean: float) -> float:
+    """P(visible | exists) after the update (hidden-target mode, ours): a detected track is
+    visible; one that exists and was missed is visible with nu <1 - p_D> / <1 - nu p_D>, and
+    <1 - nu p_D> = exp(``log_miss_mean``) gives nu <1 - p_D> = <1 - nu p_D> - (1 - nu). With one
+    track and one scan this is the Bernoulli filter's nu V / (nu V + 1 - nu)."""
+    if nu >= 1.0:
+        return 1.0
+    detected = float(np.exp(kernel_logsumexp(log_coef[1:]))) if len(log_coef) > 1 else 0.0
+    missed = float(np.exp(log_coef[0]))
+    m0 = math.exp(log_miss_mean)
+    nu_missed = max(m0 - (1.0 - nu), 0.0) / m0 if m0 > 0.0 else 0.0
+    total = detected + missed
+    return float(min((detected + missed * nu_missed) / total, 1.0)) if total > 0.0 else nu
 
 
 def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, log_kappa: float,
@@ -251,10 +279,12 @@ class LMBFilter:
         """r <- p_s r and Eq. (1) for every track; the last scan's births join with r_B."""
         self.step += 1
         moved = []
+        vis = self.p.visibility
         for t in self.tracks:
             X = t.X.copy()
             self._move(X)
-            moved.append(replace(t, r=self.p.survival_prob * t.r, X=X))
+            nu = t.nu if vis is None else (1.0 - vis[0]) * t.nu + vis[1] * (1.0 - t.nu)
+            moved.append(replace(t, r=self.p.survival_prob * t.r, X=X, nu=nu))
         for t in self._births:
             X = t.X.copy()
             self._move(X)
@@ -305,7 +335,7 @@ class LMBFilter:
         out = []
         for t in sorted(self.tracks, key=lambda t: -t.r):
             mean, cov = weighted_moments(t.X, np.exp(t.log_w))
-            out.append(TrackEstimate(t.label, t.r, mean, cov))
+            out.append(TrackEstimate(t.label, t.r, mean, cov, t.nu))
         return out
 
     def reset_track(self, label: tuple[int, int], existence: float, mean: np.ndarray | None = None,

@@ -210,7 +210,6 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     """Options of the one-target engine the swarm engine does not read yet: (key, its value in
     the scenario, the value the swarm engine runs with); a scenario that sets another is refused."""
     return [
-        ("filter.visibility", s.filter.visibility, None),
         ("fusion.existence", s.fusion.existence, "mean"),
         ("control.plan_over", s.control.plan_over, "point"),
         ("fusion.search_reseed", s.fusion.search_reseed, "always"),
@@ -242,6 +241,7 @@ def lmb_params(s: Scenario) -> LMBParams:
         birth_speed=float(f.measurement_birth_speed), accel_var=s.filter_accel_var, walls=f.walls,
         low=np.asarray(s.area.low, dtype=float), high=np.asarray(s.area.high, dtype=float),
         noise_std=np.asarray(s.sensor.noise_std, dtype=float), clutter_rate=float(s.sensor.clutter_rate),
+        visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
     )
 
 

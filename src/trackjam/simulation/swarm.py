@@ -26,7 +26,7 @@ Simulation`, a thin loop over the several-target blocks. One step:
    (the LMB's iterated corrector), every member of a cluster is informed, and there is no
    feedback (each filter already holds every scan);
 6. the confirmed tracks (with ``fusion.report_spread``, those whose fused position spread is at
-   most that) are reported and judged against the detectable targets (:mod:`trackjam.metrics.multi`);
+   most that; with ``filter.visibility``, those with existence x P(visible) > 0.5) are reported and judged against the detectable targets (:mod:`trackjam.metrics.multi`);
    with ``control.fallback: search`` the team remembers the confirmed ones' states.
 
 Every message arrives (the ``comms`` faults are one-target only so far) and the team acts as one.
@@ -150,6 +150,16 @@ def track_label(track: FusedTrack) -> str:
     return f"a{agent}:{born}.{i}"
 
 
+def visible(track: FusedTrack, own: list[list[TrackEstimate]]) -> float:
+    """P(visible | exists) of a fused track under the hidden-target mode (``filter.visibility``):
+    the mean over its members' (1 without the mode). As the one-target engine does, the team
+    reports a track only while existence x P(visible) > 0.5, what it believes it could detect
+    (an occluded target counts as absent in the OSPA and the track quality); it keeps planning
+    at one it believes hidden."""
+    nus = [next(e.visible for e in own[a] if e.label == label) for a, label in track.members]
+    return float(np.mean(nus)) if nus else 1.0
+
+
 def confirmed(tracks: list[FusedTrack]) -> list[FusedTrack]:
     """The fused tracks the team believes in (existence > 0.5, with a fused state), most likely
     first (ties by label)."""
@@ -240,7 +250,8 @@ class SwarmSimulation:
         sure = confirmed(team)
         if self.memory is not None:
             self.memory.remember(t, [(track_label(f), f.estimate.mean, f.estimate.cov) for f in sure])
-        report = [f for f in sure if located(f.estimate.cov, b.report_spread)]
+        report = [f for f in sure if located(f.estimate.cov, b.report_spread)
+                  and f.estimate.existence * visible(f, own) > CONFIRM]
         labels = [track_label(f) for f in report]
         est = np.array([f.estimate.mean[:3] for f in report]).reshape(-1, 3)
         det = X[np.isfinite(X).all(axis=1)]
