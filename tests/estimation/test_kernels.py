@@ -8,9 +8,12 @@ from scipy.stats import multivariate_normal
 
 from trackjam.config import load_scenario
 from trackjam.estimation.kernels import (
+    GATE,
     kernel_cv_predict,
+    kernel_gated_log_g,
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
+    kernel_reachable,
     kernel_systematic_indices,
     kernel_two_scan_velocity,
     kernel_update_factors,
@@ -73,6 +76,36 @@ def test_azimuth_residual_is_wrapped():
     p_ref, L_ref = reference_update_factors(x, z, u, np.array([-1.0, 0, 0]), ANT.l_max)
     assert L_ref[0] > 100  # the residual is small, the measurement strongly supports x
     np.testing.assert_allclose(np.exp(log_L), L_ref, rtol=1e-10)
+
+
+def test_gated_log_g_is_the_mahalanobis_term_inside_the_gate():
+    """c - d2 / 2 from the wrapped residuals, -inf GATE standard deviations or more away; the
+    measurements straddle the gate in range alone, in azimuth alone and in all three."""
+    rng = np.random.default_rng(9)
+    X, _, u, aim = _case(rng)
+    sd = np.array([0.5, 0.05, 0.05])
+    for i in range(len(X)):
+        z = h(X[i : i + 1], u)[0]
+        Z = z + rng.normal(0, 1, (12, 3)) * sd * rng.choice([0.5, 5.0, 9.0, 14.0], (12, 1))
+        Z[:, 1:] = wrap_angle(Z[:, 1:])
+        out = np.full((2, len(Z)), np.nan)
+        kernel_gated_log_g(X, i, u, Z, sd[0], sd[1], sd[2], -1.5, out, 1)
+        r = Z - z
+        r[:, 1:] = wrap_angle(r[:, 1:])
+        d2 = np.sum((r / sd) ** 2, axis=1)
+        expected = np.where(d2 < GATE**2, -1.5 - 0.5 * d2, -np.inf)
+        np.testing.assert_allclose(out[1], expected, rtol=1e-9, atol=1e-9)
+        assert np.all(np.isnan(out[0]))  # only row k is written
+        assert np.isinf(out[1]).any() and np.isfinite(out[1]).any()
+
+
+def test_reachable_is_every_axis_within_the_velocity_box():
+    rng = np.random.default_rng(10)
+    P, mu = rng.uniform(0, 10, (50, 3)), rng.uniform(0, 10, (6, 3))
+    sd, dt, v_b = rng.uniform(0.1, 1.0, (6, 3)), 2.0, 1.5
+    ref = np.all(np.abs(mu[None] - P[:, None]) / dt <= v_b + 3.0 * sd[None], axis=2)
+    got = np.array([[kernel_reachable(mu, j, P, i, dt, v_b, sd) for j in range(6)] for i in range(50)])
+    assert np.array_equal(got, ref) and ref.any() and not ref.all()
 
 
 def test_systematic_indices_match_numpy():

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from trackjam.estimation.kernels import GATE, _wrap
+from trackjam.estimation.kernels import kernel_gated_log_g
 from trackjam.radio.antenna import kernel_cone_gain
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -65,9 +65,10 @@ def kernel_beyond_cone(centre, radius, u, axis, height, tan_half, margin):
 def kernel_seen_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noise_std, log_kappa):
     """The particles with p_D > 0 (``seen`` (k,), indices ascending), their ``p_D`` (k,) and, per
     measurement, ``log g(y_j | x_i) - log kappa`` (k, m), kappa = lambda_c p_c; -inf where y_j
-    lies GATE standard deviations or more away (the gating of ``kernel_update_factors``, whose
-    log L_i is log(1 - p_D + p_D sum_j exp(.)) of these). Particles outside the cone (most of a
-    track's, for most scans) are only counted out: nothing is written for them."""
+    lies GATE standard deviations or more away (:func:`kernel_gated_log_g`, the gating of
+    ``kernel_update_factors``, whose log L_i is log(1 - p_D + p_D sum_j exp(.)) of these).
+    Particles outside the cone (most of a track's, for most scans) are only counted out: nothing
+    is written for them."""
     n = X.shape[0]
     m = Z.shape[0]
     seen = np.empty(n, dtype=np.int64)
@@ -84,29 +85,7 @@ def kernel_seen_factors(X, Z, u, axis, p_d_scale, height, tan_half, r0, n_e, noi
             continue
         seen[k] = i
         p_d[k] = pd
-        dx = X[i, 0] - u[0]
-        dy = X[i, 1] - u[1]
-        dz = X[i, 2] - u[2]
-        rho_xy = math.sqrt(dx * dx + dy * dy)
-        rho = math.sqrt(rho_xy * rho_xy + dz * dz)
-        # most particles pass no measurement's range gate: their angles are never needed
-        have_angles = False
-        az = 0.0
-        inc = 0.0
-        for j in range(m):
-            out[k, j] = -np.inf
-            e0 = (Z[j, 0] - rho) / s0
-            if e0 > GATE or e0 < -GATE:
-                continue
-            if not have_angles:
-                az = math.atan2(dy, dx)
-                inc = math.atan2(rho_xy, dz)
-                have_angles = True
-            e1 = _wrap(Z[j, 1] - az) / s1
-            e2 = _wrap(Z[j, 2] - inc) / s2
-            d2 = e0 * e0 + e1 * e1 + e2 * e2
-            if d2 < GATE * GATE:
-                out[k, j] = c_max - 0.5 * d2
+        kernel_gated_log_g(X, i, u, Z, s0, s1, s2, c_max, out, k)
         k += 1
     return seen[:k], p_d[:k], out[:k]
 
