@@ -28,7 +28,7 @@ def _one_line(r: subprocess.CompletedProcess) -> str:
         ("comms.loss=0.5", "comms.loss"),
         ("comms.delay_steps=2", "comms.delay_steps"),
         ("comms.failures=[{agent: 0, step: 3, mode: breakdown}]", "comms.failures"),
-        ("filter.visibility={hide: 0.1, reappear: 0.5}", "filter.visibility"),
+        ("fusion.search_reseed=evidence", "fusion.search_reseed"),
         ("control.plan_over=belief", "control.plan_over"),
         ("fusion.existence=evidence", "fusion.existence"),
     ],
