@@ -69,3 +69,20 @@ def test_a_grid_of_non_ascii_digits_is_refused(tmp_path):
     line = _one_line(_trackjam("experiment", "swarm", "--grid", "\u0661x\u0663", "--out", str(tmp_path / "e")))
     assert "--grid" in line and "whole numbers" in line
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["validate", "{long}.yaml"],
+        ["run", "paper-fig3", "--set", "steps=1", "--no-figures", "--out", "{long}"],
+        ["experiment", "constraints", "--trials", "1", "--out", "{long}"],
+        ["bench", "--only", "env", "--quick", "--json", "{long}.json"],
+    ],
+)
+def test_a_path_name_past_the_systems_limit_is_one_line(tmp_path, args):
+    # 300 bytes in one name: even Path.exists() raises, where no check of ours looked
+    long = str(tmp_path / ("x" * 300))
+    line = _one_line(_trackjam(*[a.format(long=long) for a in args]))
+    assert line.startswith(f"trackjam: error: {long}") and line.endswith("File name too long")
+    assert list(tmp_path.iterdir()) == []

@@ -77,6 +77,12 @@ def user_errors(fn: Callable) -> Callable:
             return fn(*args, **kwargs)
         except TrackjamError as err:
             _fail(str(err))
+        except OSError as err:
+            # a path the user gave that the system refuses where no check looked (a name past 255
+            # bytes fails even Path.exists()); an OSError without a file name is not the user's
+            if err.filename is None:
+                raise
+            _fail(f"{err.filename}: {err.strerror or err}")
         except KeyboardInterrupt:
             typer.echo("trackjam: interrupted", err=True)
             raise typer.Exit(130)
