@@ -10,7 +10,7 @@ import pytest
 from trackjam.config import load_scenario
 from trackjam.config import limits
 from trackjam.config.limits import candidates_bound, estimate, measurements_bound
-from trackjam.config.loading import MAX_SHOWN, MAX_VALUES, _check_size
+from trackjam.config.loading import MAX_DEPTH, MAX_SHOWN, MAX_VALUES, _check_size
 from trackjam.errors import ConfigError
 
 SMALL = ["filter.particles=300", "filter.birth_particles=60", "steps=4"]
@@ -161,3 +161,23 @@ def test_a_list_of_thousands_of_bad_entries_lists_a_few_and_counts_the_rest(tmp_
     message = _refused(str(f), [])
     assert message.count("unknown key") == MAX_SHOWN
     assert message.endswith(f"and {20000 - MAX_SHOWN} more problems") and len(message) < 2000
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("deep.yaml", "steps: " + "[" * 100_000 + "]" * 100_000 + "\n"),  # the parser's recursion gave out
+        ("deep.toml", "steps = " + "[" * 100_000 + "]" * 100_000 + "\n"),
+        ("maps.yaml", "a: " + "{b: " * 5000 + "1" + "}" * 5000 + "\n"),
+        ("parsed.yaml", "a: " + "{b: " * (MAX_DEPTH + 5) + "1" + "}" * (MAX_DEPTH + 5) + "\n"),  # parsed, then refused
+    ],
+)
+def test_values_nested_past_any_scenario_are_refused_in_one_line(tmp_path, name, text):
+    f = tmp_path / name
+    f.write_text(text)
+    assert _refused(str(f), []) == f"{f}: nested more than {MAX_DEPTH} levels deep; a scenario nests a few"
+
+
+def test_a_set_nested_past_any_scenario_is_refused_in_one_line():
+    message = _refused("paper-fig3", ["steps=" + "[" * 50_000 + "]" * 50_000])
+    assert message == f"--set steps: nested more than {MAX_DEPTH} levels deep; a scenario nests a few"

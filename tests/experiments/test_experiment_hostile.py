@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from sweep_helpers import ENV, SWEEP
 
@@ -111,3 +113,15 @@ def test_a_trial_that_cannot_be_written_is_one_line_and_keeps_the_others(done, t
         run_experiment("constraints", workers=1, out=out, **SWEEP)
     assert sorted(p.name for p in (out / "trials").iterdir() if p.is_file()) == sorted(
         trial_filename(c, k) for c in (1, 2) for k in (0, 1) if (c, k) != (2, 1))
+
+
+@pytest.mark.parametrize("value", [pa.array(["abc"]), pa.array([None], type=pa.float64()), pa.array([True])])
+def test_a_trial_whose_figure_is_mistyped_is_run_again_not_a_traceback(done, tmp_path, value):
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    path = out / "trials" / trial_filename(1, 0)
+    table = pq.read_table(path)
+    pq.write_table(table.set_column(table.column_names.index("ospa_mean"), "ospa_mean", value), path)
+    result = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert result.ran == 1 and any("damaged" in n and path.name in n for n in result.notes)
+    assert (out / "summary.csv").read_bytes() == (done / "summary.csv").read_bytes()

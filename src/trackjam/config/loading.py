@@ -24,6 +24,7 @@ MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and s
 # nested aliases (*a of a list of *b of ...) expand a few lines to billions, and copying or
 # validating them would never end
 MAX_VALUES = 1_000_000
+MAX_DEPTH = 50  # levels of nesting; the readers after the parser (copies, validation) recurse
 MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would be a line of 600 kB)
 
 
@@ -50,30 +51,36 @@ _Loader.add_implicit_resolver(
 )
 
 
-class TooManyValues(yaml.YAMLError):
-    """The aliases of a YAML text expand past ``MAX_VALUES`` values."""
+class TooLarge(yaml.YAMLError):
+    """A YAML or TOML text whose values, aliases expanded, are more than ``MAX_VALUES`` or nest
+    deeper than ``MAX_DEPTH``."""
 
 
 def _check_size(data: Any) -> None:
     """Count the values of ``data`` as its readers see them (an alias counts once per use),
     stopping at ``MAX_VALUES``: a shared list is walked as often as it is used, so the count
     costs at most ``MAX_VALUES`` steps however far the aliases would expand."""
-    stack, seen = [data], 0
+    stack, seen = [(data, 0)], 0
     while stack:
-        node = stack.pop()
+        node, depth = stack.pop()
         seen += 1
         if seen > MAX_VALUES:
-            raise TooManyValues(
+            raise TooLarge(
                 f"its aliases (*name) expand to more than {MAX_VALUES:,} values; a scenario has a few hundred"
             )
+        if depth > MAX_DEPTH:
+            raise TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few")
         if isinstance(node, dict):
-            stack.extend(node.values())
+            stack.extend((v, depth + 1) for v in node.values())
         elif isinstance(node, list):
-            stack.extend(node)
+            stack.extend((v, depth + 1) for v in node)
 
 
 def _yaml(text: str) -> Any:
-    data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader)
+    try:
+        data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader)
+    except RecursionError:  # the parser recurses once per level: [[[[... 100,000 deep
+        raise TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few") from None
     _check_size(data)
     return data
 
@@ -176,12 +183,21 @@ def _read_text(path: Path) -> str:
     return text
 
 
+def _toml(text: str) -> Any:
+    try:
+        data = tomllib.loads(text)
+    except RecursionError:
+        raise TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few") from None
+    _check_size(data)
+    return data
+
+
 def _read_file(path: Path) -> dict:
     text = _read_text(path)
     toml = path.suffix.lower() == ".toml"
     try:
-        data = tomllib.loads(text) if toml else _yaml(text)
-    except TooManyValues as err:
+        data = _toml(text) if toml else _yaml(text)
+    except TooLarge as err:
         raise ConfigError(f"{path}: {err}") from None
     except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
@@ -198,7 +214,7 @@ def _read_file(path: Path) -> dict:
 def _parse_value(text: str) -> Any:
     try:
         return _yaml(text)
-    except TooManyValues:
+    except TooLarge:
         raise
     except yaml.YAMLError:
         return text
@@ -230,7 +246,7 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
         key, _, value = item.partition("=")
         try:
             parsed = _parse_value(value)
-        except TooManyValues as err:
+        except TooLarge as err:
             raise ConfigError(f"--set {key.strip()}: {err}") from None
         set_dotted(data, key, parsed)
     return data

@@ -110,6 +110,8 @@ def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
     record = table.to_pylist()[0]
     if any(not isinstance(record[k], kind) for k, kind in _IDENTITY):
         raise DamagedTrial(f"{path.name}: a null or mistyped identity column")
+    if any(isinstance(record[k], bool) or not isinstance(record[k], (int, float)) for k in keys):
+        raise DamagedTrial(f"{path.name}: a null or mistyped figure")  # the summary's means would fail on it
     return record
 
 
