@@ -181,3 +181,15 @@ def test_values_nested_past_any_scenario_are_refused_in_one_line(tmp_path, name,
 def test_a_set_nested_past_any_scenario_is_refused_in_one_line():
     message = _refused("paper-fig3", ["steps=" + "[" * 50_000 + "]" * 50_000])
     assert message == f"--set steps: nested more than {MAX_DEPTH} levels deep; a scenario nests a few"
+
+
+@pytest.mark.parametrize("overrides", ["steps=3", b"steps=3", [3], [None], 5])
+def test_overrides_that_are_not_a_list_of_texts_are_named(overrides):
+    # a lone text was read a character at a time ("--set 's': expected key=value")
+    with pytest.raises(ConfigError, match=r"^overrides: a list of 'key=value' texts, got "):
+        load_scenario("paper-fig3", overrides)
+
+
+def test_overrides_may_be_any_iterable_of_texts():
+    assert load_scenario("paper-fig3", (item for item in ["steps=3"])).steps == 3
+    assert load_scenario("paper-fig3", ("steps=4",)).steps == 4

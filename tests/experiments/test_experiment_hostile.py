@@ -125,3 +125,30 @@ def test_a_trial_whose_figure_is_mistyped_is_run_again_not_a_traceback(done, tmp
     result = run_experiment("constraints", workers=1, out=out, **SWEEP)
     assert result.ran == 1 and any("damaged" in n and path.name in n for n in result.notes)
     assert (out / "summary.csv").read_bytes() == (done / "summary.csv").read_bytes()
+
+
+@pytest.mark.parametrize(
+    "damage, words",
+    [
+        (lambda out: shutil.rmtree(out / "trials"), "no trials/ folder here"),
+        (lambda out: (out / "experiment.json").write_text('{"experiment": "constraints"}'),
+         "trials, steps, seed, overrides missing or mistyped"),
+        (lambda out: _edit_json(out, grid=5), "grid missing or mistyped"),
+        (lambda out: _edit_json(out, trials="2"), "trials missing or mistyped"),
+    ],
+)
+def test_summarising_a_damaged_folder_is_one_line(done, tmp_path, damage, words):
+    from trackjam.experiments.engine import summarise_folder
+
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    damage(out)
+    with pytest.raises(ConfigError, match=words):
+        summarise_folder(out)
+
+
+def _edit_json(out: Path, **changes) -> None:
+    import json
+
+    params = json.loads((out / "experiment.json").read_text())
+    (out / "experiment.json").write_text(json.dumps({**params, **changes}))

@@ -237,10 +237,21 @@ def set_dotted(data: dict, key: str, value: Any) -> None:
     node[parts[-1]] = value
 
 
+def _items(overrides: Any) -> list[str]:
+    """The ``--set`` texts as a list (a lone text would be read a character at a time)."""
+    try:
+        items = None if isinstance(overrides, (str, bytes)) else list(overrides or [])
+    except TypeError:  # not iterable
+        items = None
+    if items is None or not all(isinstance(item, str) for item in items):
+        raise ConfigError(f"overrides: a list of 'key=value' texts, got {overrides!r:.80}")
+    return items
+
+
 def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
     """Apply dotted ``key=value`` overrides (values parsed as YAML) to a copy of a mapping."""
     data = _deep_copy(data)
-    for item in overrides or []:
+    for item in _items(overrides):
         if "=" not in item:
             raise ConfigError(f"--set {item!r}: expected key=value")
         key, _, value = item.partition("=")
@@ -281,6 +292,7 @@ def load_scenario(
     Keyword ``fields`` set keys too, ``__`` standing for the dot
     (``load_scenario("paper-fig3", steps=5, control__solver="exact")``).
     """
+    overrides = _items(overrides)
     data, label = load_scenario_data(name_or_path)
     data = apply_overrides(data, overrides)
     for key, value in fields.items():

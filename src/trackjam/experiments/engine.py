@@ -347,6 +347,12 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     if not meta.exists():
         raise ConfigError(f"{out}: no experiment.json here")
     params = read_parameters(meta)
+    kinds = {"experiment": str, "trials": int, "steps": int, "seed": int, "overrides": list, "grid": (str, type(None))}
+    wrong = [k for k, kind in kinds.items() if not isinstance(params.get(k), kind) or isinstance(params.get(k), bool)]
+    if wrong:
+        raise ConfigError(f"{meta}: {', '.join(wrong)} missing or mistyped; not an experiment's parameters")
+    if not (out / "trials").is_dir():
+        raise ConfigError(f"{out}: no trials/ folder here, nothing to summarise")
     experiment = get_experiment(params["experiment"], params.get("grid"))
     scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
     found, notes = _read_back(out / "trials", experiment, {key: s.seed for key, s in scenarios.items()})
