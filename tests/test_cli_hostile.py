@@ -86,3 +86,11 @@ def test_a_path_name_past_the_systems_limit_is_one_line(tmp_path, args):
     line = _one_line(_trackjam(*[a.format(long=long) for a in args]))
     assert line.startswith(f"trackjam: error: {long}") and line.endswith("File name too long")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["show-config", "swarm-3"], ["presets"], ["validate", "paper-fig3"]])
+def test_an_output_on_a_full_disk_is_one_line(args):
+    # /dev/full: every write fails with ENOSPC, as a redirect to a full disk does
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "trackjam", *args], stdout=full, stderr=subprocess.PIPE, text=True)
+    assert _one_line(r) == "trackjam: error: cannot write the output: No space left on device"

@@ -6,6 +6,7 @@ stderr and exit status 2, never a traceback.
 
 from __future__ import annotations
 
+import errno
 import functools
 import sys
 from pathlib import Path
@@ -79,10 +80,13 @@ def user_errors(fn: Callable) -> Callable:
             _fail(str(err))
         except OSError as err:
             # a path the user gave that the system refuses where no check looked (a name past 255
-            # bytes fails even Path.exists()); an OSError without a file name is not the user's
-            if err.filename is None:
-                raise
-            _fail(f"{err.filename}: {err.strerror or err}")
+            # bytes fails even Path.exists()), or the standard output on a full disk (`> /dev/full`);
+            # any other OSError without a file name is not the user's
+            if err.filename is not None:
+                _fail(f"{err.filename}: {err.strerror or err}")
+            if err.errno in (errno.ENOSPC, errno.EDQUOT):
+                _fail(f"cannot write the output: {err.strerror}")
+            raise
         except KeyboardInterrupt:
             typer.echo("trackjam: interrupted", err=True)
             raise typer.Exit(130)
