@@ -65,3 +65,23 @@ def test_a_seed_past_the_scenarios_bound_is_refused(scenario, seed):
     with pytest.raises(ValueError, match=r"the seed must be an integer in \[0, 2\^63 - 1\]"):
         env.reset(seed=seed)
     env.reset(seed=2**63 - 1)
+
+
+@pytest.mark.parametrize("seed", [1.5, "3", True, -1])
+def test_a_seed_that_is_not_a_whole_number_is_refused_by_the_policies(scenario, seed):
+    from trackjam.env import random_policy, rollout
+
+    env = parallel_env(scenario)
+    with pytest.raises(ValueError, match=r"^random_policy: seed .* must be an integer >= 0"):
+        random_policy(env, seed)
+    # rollout read int(1.5) == int(1.7) == 1: two seeds, one episode twice
+    with pytest.raises(ValueError, match=r"^rollout: seed .* must be an integer >= 0"):
+        rollout(env, random_policy(env, 0), [seed])
+
+
+def test_rollout_takes_numpy_integers(scenario):
+    from trackjam.env import random_policy, rollout
+
+    env = parallel_env(scenario)
+    rows = rollout(env, random_policy(env, 0), np.arange(2, 4))
+    assert [r["seed"] for r in rows] == [2, 3]

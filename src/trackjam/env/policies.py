@@ -45,10 +45,17 @@ class RandomPolicy:
         self.reset(seed)
 
     def reset(self, seed: int) -> None:
-        self.rng = np.random.default_rng([int(seed), RANDOM_POLICY_WORD])
+        self.rng = np.random.default_rng([_seed(seed, "random_policy"), RANDOM_POLICY_WORD])
 
     def __call__(self, obs: dict) -> dict:
         return {a: self.rng.integers(self.env.action_space(a).nvec) for a in self.env.agents}
+
+
+def _seed(seed, where: str) -> int:
+    """An episode seed: a whole number >= 0 (a bool, a fraction or a text is a mistake)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"{where}: seed {seed!r} must be an integer >= 0")
+    return int(seed)
 
 
 def random_policy(env: TrackjamParallelEnv, seed: int = 0) -> RandomPolicy:
@@ -63,7 +70,8 @@ def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
     A policy with a ``reset(seed)`` method is reset at the start of each episode."""
     rows = []
     for seed in seeds:
-        obs, _ = env.reset(seed=int(seed))
+        seed = _seed(seed, "rollout")  # int() made 1.5 and 1.7 the same episode
+        obs, _ = env.reset(seed=seed)
         if hasattr(policy, "reset"):
             policy.reset(int(seed))
         total, xi, violations, steps, end = 0.0, 0.0, 0.0, 0, ""
