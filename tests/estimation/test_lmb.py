@@ -389,3 +389,10 @@ def test_bad_parameters_are_refused():
         params(association="enumerate")
     with pytest.raises(ValueError, match="birth_existence_max"):
         params(birth_existence_max=1.0)
+
+
+def test_a_late_scan_is_refused():
+    """Late scans (comms faults) are one-target only: the LMB update refuses them."""
+    track = Track((1, 0), 0.5, X_HAND, np.log(W_HAND))
+    with pytest.raises(ValueError, match="late scan"):
+        lmb_update([track], scan(np.zeros((0, 3))).late(1), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0))

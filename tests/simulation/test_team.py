@@ -156,6 +156,49 @@ def test_with_a_delay_each_agent_fuses_its_teammates_late_posteriors_only_when_c
     assert sizes[:3] == [1, 1, 1] and set(sizes[3:]) == {fused}
 
 
+@pytest.mark.parametrize("stale", ["drop", "coast"])
+def test_with_a_delay_and_shared_scans_each_filter_weighs_its_teammates_late_scans_when_coasting(monkeypatch, stale):
+    """fusion.share: scans with comms.delay_steps = 1: a teammate's scan of step t reaches a
+    filter at step t + 1, marked one step late and taken from where the teammate stood at t;
+    under ``drop`` no teammate's scan is weighed."""
+    from trackjam.estimation.bernoulli import BernoulliFilter
+
+    seen, positions = [], []
+    update = BernoulliFilter.update
+
+    def spy(self, Z, u, aim, level_w, others=()):
+        seen.append([(o.lag, tuple(o.u)) for o in others])
+        positions.append(tuple(u))
+        return update(self, Z, u, aim, level_w, others)
+
+    monkeypatch.setattr(BernoulliFilter, "update", spy)
+    run("fusion.share=scans", "comms.delay_steps=1", f"comms.stale={stale}")
+    steps = [seen[k:k + 3] for k in range(0, len(seen), 3)]
+    at = [positions[k:k + 3] for k in range(0, len(positions), 3)]
+    assert steps[0] == [[], [], []]
+    for t in range(1, len(steps)):
+        for j in range(3):
+            want = [(1, at[t - 1][k]) for k in range(3) if k != j] if stale == "coast" else []
+            assert steps[t][j] == want
+
+
+def test_a_late_scan_weighs_each_particle_where_eq1_puts_it_lag_steps_before():
+    from trackjam.estimation.bernoulli import Scan
+    from trackjam.radio.measurement import h
+
+    s = load_scenario("paper-fig3")
+    ant = antenna_model(s)
+    rng = np.random.default_rng(3)
+    X = np.c_[rng.uniform(20, 40, (50, 3)), rng.normal(0, 3, (50, 3))]
+    u, aim = np.array([25.0, 25.0, 25.0]), np.array([32.0, 30.0, 31.0])
+    then = X.copy()
+    then[:, :3] -= 2 * X[:, 3:]
+    scan = Scan.of(h(then[:3], u) + 0.01, u, aim, ant.l_max, ant)
+    args = (ant, s.sensor.noise_std, np.log(3.0))
+    np.testing.assert_array_equal(scan.late(2).log_factors(X, *args), scan.log_factors(then, *args))
+    assert not np.array_equal(scan.late(2).log_factors(X, *args), scan.log_factors(X, *args))
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_a_guarded_teammate_is_protected_by_the_exact_plan(seed):
     """A teammate heard from only long ago is a receiver with no moves and no say in Xi: the

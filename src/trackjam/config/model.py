@@ -458,8 +458,9 @@ class Comms(_Model):
     delay_steps: Integer(0, 1000) = Field(0, description="steps a message takes to arrive, in [0, 1000]")
     stale: Literal["drop", "coast"] = Field(
         "coast",
-        description="a teammate's posterior that arrives late: `drop` (only its position is kept) or `coast` (ours: "
-        "its estimate is predicted by Eq. (1) to the current step and fused with the fresh ones)",
+        description="a teammate's posterior or scan that arrives late: `drop` (only its position is kept) or `coast` "
+        "(ours: a posterior is predicted by Eq. (1) to the current step and fused with the fresh ones; under "
+        "fusion.share: scans a scan updates the filter at its particles retrodicted to the scan's step)",
     )
     failures: list[Failure] = Field(
         default_factory=list, max_length=1000, description="agents that fail at a given step (at most 1000)"

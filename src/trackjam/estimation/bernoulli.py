@@ -36,7 +36,7 @@ birth density, so that ``reset_to`` or a later birth has something to work with.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -75,12 +75,14 @@ RESERVE_CAP = 3
 @dataclass(frozen=True)
 class Scan:
     """What the update of one step needs from the radio: measurements ``Z`` (m, 3) taken from
-    ``u`` with the antenna's unit ``axis`` and ``p_d_scale = (l / l_max) p_D^max``."""
+    ``u`` with the antenna's unit ``axis`` and ``p_d_scale = (l / l_max) p_D^max``; ``lag`` > 0
+    marks a teammate's scan of ``lag`` steps ago that arrived late (``comms.stale: coast``)."""
 
     Z: np.ndarray
     u: np.ndarray
     axis: np.ndarray
     p_d_scale: float
+    lag: int = 0
 
     @classmethod
     def of(cls, Z, u, aim, level_w: float, ant: AntennaModel) -> "Scan":
@@ -88,8 +90,17 @@ class Scan:
         return cls(np.asarray(Z, dtype=float).reshape(-1, 3), u, axis_of(u, np.asarray(aim, dtype=float)),
                    max(float(level_w), 0.0) / ant.l_max * ant.p_d_max)
 
+    def late(self, lag: int) -> "Scan":
+        """This scan arriving ``lag`` steps after it was taken."""
+        return replace(self, lag=int(lag))
+
     def log_factors(self, X: np.ndarray, ant: AntennaModel, noise_std, log_lambda_c: float) -> np.ndarray:
-        """log L_i of every particle (the bracket of the update)."""
+        """log L_i of every particle (the bracket of the update). A late scan is weighed at each
+        particle retrodicted by Eq. (1) without its noise, x - lag dT v (ours: the particles
+        are at the current step, the scan was taken ``lag`` steps before; walls are ignored)."""
+        if self.lag:
+            X = np.array(X, dtype=float)
+            X[:, :3] -= self.lag * DT * X[:, 3:6]
         _, log_L = kernel_update_factors(
             np.ascontiguousarray(X), self.Z, self.u, self.axis, self.p_d_scale, ant.height, ant.tan_half, ant.r0,
             ant.n_e, np.asarray(noise_std, dtype=float), float(log_lambda_c),

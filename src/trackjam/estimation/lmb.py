@@ -214,6 +214,8 @@ def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, lo
     probability that each measurement was some track's. ``balls[i]`` holds track i's particles
     (:func:`track_factors`; the particles do not move within an update, so one ball serves every
     scan of it)."""
+    if scan.lag:
+        raise ValueError("the LMB filter takes no late scan (comms faults are one-target only)")
     m = len(scan.Z)
     factors = [track_factors(t, scan, ant, noise_std, log_kappa, None if balls is None else balls[i])
                for i, t in enumerate(tracks)]

@@ -17,8 +17,9 @@ arrives ``delay_steps`` late; an agent can lose its publisher, its whole channel
 An agent never plans with a teammate it did not hear from this step as if it were fresh: such a
 teammate is left out of the joint plan and only *guarded* at its last known position (a
 receiver that Eq. (13) protects, with no moves and no say in Eq. (12)'s Xi). A teammate's late
-posterior is predicted by Eq. (1) to the current step and fused with the fresh ones
-(``comms.stale: coast``; ``drop`` ignores it). With every message delivered, every agent holds
+posterior is predicted by Eq. (1) to the current step and fused with the fresh ones, and under
+``fusion.share: scans`` a late scan is weighed at the particles retrodicted to its step
+(``comms.stale: coast``; ``drop`` ignores both). With every message delivered, every agent holds
 the same information and the team acts as one.
 """
 
@@ -51,7 +52,7 @@ class TeamSettings:
     accel_var: float  # the filters' Sigma_v scale, used to coast a lost track
     loss: float = 0.0  # comms.loss
     delay_steps: int = 0  # comms.delay_steps
-    stale: str = "coast"  # comms.stale: "drop" | "coast" a teammate's late posterior
+    stale: str = "coast"  # comms.stale: "drop" | "coast" a teammate's late posterior or scan
     failures: tuple[tuple[int, int, str], ...] = ()  # comms.failures as (agent, step, mode)
     aim: AimSettings = AimSettings()  # control.lead, control.horizon: the aim ahead of x_bar
     search_reseed: str = "always"  # fusion.search_reseed: "always" | "evidence"
@@ -236,7 +237,9 @@ class Team:
 
     def update(self, scans: list[np.ndarray], points: np.ndarray, level_w: np.ndarray) -> list[Message | None]:
         """Each working agent updates its filter on its own scan (Section V-A) and, with
-        ``fusion.share: scans``, on every teammate's scan of this step it received."""
+        ``fusion.share: scans``, on every teammate's scan of this step it received and, under
+        ``comms.stale: coast``, on every late one that arrived, weighed at its particles
+        retrodicted to the scan's step (:meth:`Scan.log_factors`)."""
         out: list[Message | None] = [None] * len(self.agents)
         working = self.working()
         others: dict[int, list] = {j: [] for j in working}
@@ -246,7 +249,9 @@ class Team:
                             scan=Scan.of(scans[j], self.agents[j].position, points[j], float(level_w[j]), ant))
                     for j in working]
             inboxes = self.exchange.send(self.t, "scan", sent)
-            others = {j: [m.scan for m in inboxes[j] if m.stamp == self.t and m.sender != j] for j in working}
+            late = self.settings.stale == "coast"
+            others = {j: [m.scan if m.stamp == self.t else m.scan.late(self.t - m.stamp) for m in inboxes[j]
+                          if m.sender != j and (m.stamp == self.t or late)] for j in working}
         for j in working:
             prior = next(m for m in self.inbox[j] if m.sender == j).estimate.existence
             out[j] = self.agents[j].update(self.t, scans[j], points[j], float(level_w[j]), prior, others[j])
