@@ -280,10 +280,13 @@ def kernel_two_scan_velocity(P, V, mu, chol, Linv, log_det, sd, v_b, dt, blind, 
         mx = -np.inf
         acc_s = 0.0
         for j in range(m):
-            if not kernel_reachable(mu, j, P, i, dt, v_b, sd):
-                continue
+            ok = True  # kernel_reachable, keeping the velocity (mu_j - p) / dt for the density
             for a in range(3):
                 mean[a] = (mu[j, a] - P[i, a]) / dt
+                if abs(mean[a]) > v_b + 3.0 * sd[j, a]:
+                    ok = False
+            if not ok:
+                continue
             q = 0.0
             for a in range(3):
                 y = 0.0
