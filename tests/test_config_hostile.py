@@ -193,3 +193,14 @@ def test_overrides_that_are_not_a_list_of_texts_are_named(overrides):
 def test_overrides_may_be_any_iterable_of_texts():
     assert load_scenario("paper-fig3", (item for item in ["steps=3"])).steps == 3
     assert load_scenario("paper-fig3", ("steps=4",)).steps == 4
+
+
+@pytest.mark.parametrize(
+    "text, kind",
+    [("? [a, b]\n: 1\n", "list"), ("? {a: 1}\n: 1\n", "dict"), ("agents: {? [1]: 2}\n", "list")],
+)
+def test_a_yaml_key_that_is_a_list_or_a_mapping_is_one_line(tmp_path, text, kind):
+    # it was a TypeError (unhashable) from the duplicate-key check
+    f = tmp_path / "keys.yaml"
+    f.write_text(text)
+    assert _refused(str(f), []) == f"{f}: not valid YAML: a key must be a name, got a {kind} (line {text.count(chr(10), 0, text.index('?')) + 1})"

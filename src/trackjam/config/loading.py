@@ -36,6 +36,11 @@ class _Loader(yaml.SafeLoader):
         seen = set()
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (list, dict)):  # YAML's "? [a, b]" keys; a Python dict cannot hold them
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"a key must be a name, got a {type(key).__name__} (line {key_node.start_mark.line + 1})",
+                    key_node.start_mark,
+                )
             if key in seen:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"duplicate key {key!r} (line {key_node.start_mark.line + 1})", key_node.start_mark
