@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+import trackjam
 from trackjam.config import load_scenario
 from trackjam.config import limits
 from trackjam.config.limits import candidates_bound, estimate, measurements_bound
@@ -204,3 +205,12 @@ def test_a_yaml_key_that_is_a_list_or_a_mapping_is_one_line(tmp_path, text, kind
     f = tmp_path / "keys.yaml"
     f.write_text(text)
     assert _refused(str(f), []) == f"{f}: not valid YAML: a key must be a name, got a {kind} (line {text.count(chr(10), 0, text.index('?')) + 1})"
+
+
+def test_the_swarm_log_estimate_covers_the_columns_a_run_holds():
+    s = load_scenario("swarm-3", SMALL + ["sensor.clutter_rate=50"])
+    result = trackjam.simulate(s)
+    held = sum(np.asarray(v).nbytes for table in result.tables.values() for v in table.values())
+    assert held <= estimate(s)["memory_logs"][0]
+    # and not by orders of magnitude: the estimate is 4 times the rows' bytes
+    assert estimate(s)["memory_logs"][0] < 40 * held
