@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from gymnasium import logger, spaces
@@ -22,9 +23,12 @@ from pettingzoo import ParallelEnv
 from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
-from trackjam.simulation.build import Scenario, figure_settings, with_seed
+from trackjam.simulation.build import figure_settings, is_scenario, with_seed
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
+
+if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
+    from trackjam.simulation.build import Scenario
 
 RENDER_MODES = ("rgb_array", "replay")
 MAX_JAM_PENALTY = 1e6
@@ -56,8 +60,7 @@ class TrackjamParallelEnv(ParallelEnv):
 
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
                  replay_path: str = "replay.html") -> None:
-        if not isinstance(scenario, Scenario):
-            raise TypeError(f"scenario: expected a Scenario (trackjam.load_scenario(...)), got {type(scenario).__name__}")
+        is_scenario(scenario)
         # a penalty past MAX_JAM_PENALTY times the largest violation (about 1.7e4) overflows the reward to -inf
         if (isinstance(jam_penalty, bool) or not isinstance(jam_penalty, (int, float, np.integer, np.floating))
                 or not 0 <= jam_penalty <= MAX_JAM_PENALTY):

@@ -149,9 +149,17 @@ class Components:
         return seed_tree(self.seed, self.n_agents)
 
 
+def is_scenario(s: object) -> None:
+    """Refuse, naming it, what is not a :class:`Scenario` (a preset's name, a mapping): the
+    engines would fail on its first attribute."""
+    if not isinstance(s, Scenario):
+        raise TypeError(f"scenario: expected a Scenario (trackjam.load_scenario(...)), got {type(s).__name__}")
+
+
 def one_target(s: Scenario) -> None:
     """Refuse a scenario with several targets for the one-target engine, in one line (a run
     with several targets goes through the swarm engine, :func:`build_swarm`)."""
+    is_scenario(s)
     if len(s.target_list) > 1:
         raise ConfigError(
             f"targets: {len(s.target_list)} targets given, but this component simulates one target; a run with "
@@ -247,11 +255,13 @@ def lmb_params(s: Scenario) -> LMBParams:
 
 def several_targets(s: Scenario) -> bool:
     """The scenario lists more than one target: it runs on the swarm engine."""
+    is_scenario(s)
     return len(s.target_list) > 1
 
 
 def build_swarm(s: Scenario) -> SwarmComponents:
     """The swarm engine's components; an option it does not simulate yet is refused in one line."""
+    is_scenario(s)
     for key, value, runs in _swarm_unsupported(s):
         if value != runs:
             raise ConfigError(
