@@ -152,3 +152,12 @@ def _edit_json(out: Path, **changes) -> None:
 
     params = json.loads((out / "experiment.json").read_text())
     (out / "experiment.json").write_text(json.dumps({**params, **changes}))
+
+
+@pytest.mark.parametrize("name", ["table1", "holding"])
+def test_a_list_of_targets_for_a_one_target_experiment_points_to_swarm(tmp_path, name):
+    # it said "give either target or targets, not both; `target: null` ...", and --set target is refused
+    with pytest.raises(ConfigError, match=rf"^--set targets: experiment {name} draws one target per trial; "
+                                          "several targets: trackjam experiment swarm$"):
+        run_experiment(name, **SWEEP, workers=1, out=tmp_path / "e", overrides=["targets=[{id: a}, {id: b}]"])
+    assert not (tmp_path / "e").exists()

@@ -237,6 +237,9 @@ def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
     owned_keys = {DRAW: _DRAW_TRIAL_KEYS, SEED: _SEED_TRIAL_KEYS, SWARM: _SWARM_TRIAL_KEYS}[experiment.trials]
     for item in overrides:
         key = item.partition("=")[0].strip()
+        if experiment.trials != SWARM and _overlaps(key, "targets"):  # else: "give target or targets"
+            raise ConfigError(f"--set {key}: experiment {experiment.name} draws one target per trial; "
+                              "several targets: trackjam experiment swarm")
         for owned in owned_keys:
             if _overlaps(key, owned):
                 hint = " (use --steps)" if owned == "steps" else " (use --seed)" if owned == "seed" else ""
