@@ -94,3 +94,11 @@ def test_an_output_on_a_full_disk_is_one_line(args):
     with open("/dev/full", "w") as full:
         r = subprocess.run([sys.executable, "-m", "trackjam", *args], stdout=full, stderr=subprocess.PIPE, text=True)
     assert _one_line(r) == "trackjam: error: cannot write the output: No space left on device"
+
+
+def test_a_failure_after_the_last_step_warns_in_one_line_and_validate_says_ok():
+    r = _trackjam("validate", "paper-fig3", "--set",
+                  "comms.failures=[{agent: 0, step: 5, mode: breakdown}, {agent: 1, step: 31, mode: channel}]")
+    assert r.returncode == 0 and r.stdout.startswith("ok"), r.stderr
+    assert r.stderr.splitlines() == [
+        "trackjam: warning: comms.failures[1]: start after the last step (30); the agent never fails"]

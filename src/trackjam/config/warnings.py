@@ -24,6 +24,9 @@ def scenario_warnings(s: Scenario) -> list[str]:
         late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps]
         if late:
             out.append(f"{key}.occlusions: {', '.join(late)} reach past the last step ({s.steps})")
+    late = [f"comms.failures[{k}]" for k, f in enumerate(s.comms.failures) if f.step > s.steps]
+    if late:
+        out.append(f"{', '.join(late)}: start after the last step ({s.steps}); the agent never fails")
     at: dict[tuple, list[int]] = {}
     for j, u in enumerate(s.agents.initial):
         at.setdefault(tuple(u), []).append(j)
