@@ -68,14 +68,18 @@ def factors_twin(X, Z, level_w):
     return p_d, np.where((p_d[:, None] > 0) & (d2 < GATE**2), log_g, -np.inf)
 
 
+# scans of one agent: a miss, a detection on the track, a detection and clutter, clutter only
+SCANS_HAND = [
+    np.zeros((0, 3)),
+    h(X_HAND[1], U)[None, :],
+    np.vstack([h(X_HAND[0], U) + [0.5, 0.03, -0.02], [30.0, 2.0, 2.5]]),
+    np.array([[30.0, 2.0, 2.5], [12.0, -1.0, 0.4]]),
+]
+
+
 @pytest.mark.parametrize("method", ["gibbs", "ranked"])
 @pytest.mark.parametrize("r", [0.02, 0.5, 0.97])
-@pytest.mark.parametrize("Z", [
-    np.zeros((0, 3)),                                             # a miss
-    h(X_HAND[1], U)[None, :],                                     # a detection on the track
-    np.vstack([h(X_HAND[0], U) + [0.5, 0.03, -0.02], [30.0, 2.0, 2.5]]),  # a detection and clutter
-    np.array([[30.0, 2.0, 2.5], [12.0, -1.0, 0.4]]),              # clutter only
-])
+@pytest.mark.parametrize("Z", SCANS_HAND)
 def test_one_track_is_the_bernoulli_filter(method, r, Z):
     """K = 1: the LMB update of one track gives Section V-A's e_t and s_t exactly."""
     e, log_post, _, _ = bernoulli_update(r, X_HAND, np.log(W_HAND), Z, U, AIM, ANT.l_max, ANT, SIGMA, LOG_KAPPA)
@@ -89,11 +93,7 @@ def test_one_track_is_the_bernoulli_filter(method, r, Z):
 
 @pytest.mark.parametrize("method", ["gibbs", "ranked"])
 @pytest.mark.parametrize("nu", [0.0, 0.3, 0.9])
-@pytest.mark.parametrize("Z", [
-    np.zeros((0, 3)),                                             # a miss
-    h(X_HAND[1], U)[None, :],                                     # a detection on the track
-    np.vstack([h(X_HAND[0], U) + [0.5, 0.03, -0.02], [30.0, 2.0, 2.5]]),  # a detection and clutter
-])
+@pytest.mark.parametrize("Z", SCANS_HAND)
 def test_one_hidden_track_is_the_bernoulli_filter_with_a_hidden_mode(method, nu, Z):
     """K = 1 under the hidden-target mode: the LMB update of a track with P(visible) = nu
     gives the Bernoulli filter's L'_i = nu L_i + (1 - nu), its existence and spatial density,
