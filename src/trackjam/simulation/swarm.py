@@ -26,8 +26,8 @@ Simulation`, a thin loop over the several-target blocks. One step:
    (the LMB's iterated corrector), every member of a cluster is informed, and there is no
    feedback (each filter already holds every scan);
 6. the confirmed tracks (with ``fusion.report_spread``, those whose fused position spread is at
-   most that; with ``filter.visibility``, those with existence x P(visible) > 0.5) are reported and judged against the detectable targets (:mod:`trackjam.metrics.multi`);
-   with ``control.fallback: search`` the team remembers the confirmed ones' states.
+   most that; with ``filter.visibility``, those with existence x P(visible) > 0.5) are reported
+   and judged against the detectable targets (:mod:`trackjam.metrics.multi`); with ``control.fallback: search`` the team remembers the confirmed ones' states.
 
 Every message arrives (the ``comms`` faults are one-target only so far) and the team acts as one.
 """
@@ -126,6 +126,11 @@ def cue_tracks(lmb: LMBFilter, first: np.ndarray, present: list[bool],
     return tracks
 
 
+def member_indices(track: FusedTrack, own: list[list[TrackEstimate]]) -> list[tuple[int, int]]:
+    """(agent, index in ``own[agent]``) of each member track of a fused track."""
+    return [(a, next(i for i, e in enumerate(own[a]) if e.label == label)) for a, label in track.members]
+
+
 def informed_fusion(team: list[FusedTrack], own: list[list[TrackEstimate]],
                     informed: list[np.ndarray]) -> list[FusedTrack]:
     """Each cluster's estimate from its informed members only, when it has some and not all of
@@ -134,7 +139,7 @@ def informed_fusion(team: list[FusedTrack], own: list[list[TrackEstimate]],
     member informed (one target, every cone on it) this is the fusion of the whole cluster."""
     out = []
     for f in team:
-        index = [(a, next(i for i, e in enumerate(own[a]) if e.label == label)) for a, label in f.members]
+        index = member_indices(f, own)
         told = [(a, i) for a, i in index if informed[a][i]]
         if told and len(told) < len(index):
             est = fuse([Estimate(own[a][i].existence, own[a][i].mean, own[a][i].cov) for a, i in told])
@@ -156,7 +161,7 @@ def visible(track: FusedTrack, own: list[list[TrackEstimate]]) -> float:
     reports a track only while existence x P(visible) > 0.5, what it believes it could detect
     (an occluded target counts as absent in the OSPA and the track quality); it keeps planning
     at one it believes hidden."""
-    nus = [next(e.visible for e in own[a] if e.label == label) for a, label in track.members]
+    nus = [own[a][i].visible for a, i in member_indices(track, own)]
     return float(np.mean(nus)) if nus else 1.0
 
 
