@@ -30,16 +30,16 @@ MAX_AGENTS = 64
 MAX_STEP_WORK = 1e9  # elementary operations a step (about 5 to 30 s on one core)
 NAME_MAX = 100
 # the swarm engine's budgets (several targets), mirrored here because the configuration imports
-# nothing of the engine (tests/test_limits_swarm.py holds them equal): an agent's LMB filter
+# nothing of the engine (tests/test_config_hostile.py holds them equal): an agent's LMB filter
 # keeps at most MAX_TRACKS tracks and MAX_BIRTHS births a scan (sum_j r_B(y_j) <= lambda_B = 0.1,
 # births below r = 1e-3 are pruned), and the team plans at most MAX_AIMS aims
 MAX_TRACKS = 20
+MAX_BIRTHS = 100
+MAX_AIMS = 4
 # an experiment builds every (configuration, trial) scenario up front (about 1 ms each, without
 # a word): the cap keeps that under half a minute
 MAX_TRIAL_RUNS = 20_000
 WORKER_BYTES = 3e8  # a worker process with numpy, numba and trackjam loaded (about 200 MB) and its trial's copies
-MAX_BIRTHS = 100
-MAX_AIMS = 4
 
 _NAME = re.compile(r"[^\W][\w.+-]*")
 

@@ -74,20 +74,29 @@ def _check_size(data: Any) -> None:
                 f"its aliases (*name) expand to more than {MAX_VALUES:,} values; a scenario has a few hundred"
             )
         if depth > MAX_DEPTH:
-            raise TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few")
+            raise _too_deep()
         if isinstance(node, dict):
             stack.extend((v, depth + 1) for v in node.values())
         elif isinstance(node, list):
             stack.extend((v, depth + 1) for v in node)
 
 
-def _yaml(text: str) -> Any:
+def _too_deep() -> TooLarge:
+    return TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few")
+
+
+def _parsed(parse: typing.Callable[[str], Any], text: str) -> Any:
+    """``parse(text)`` (YAML or TOML) refused when too large or too deep (:func:`_check_size`)."""
     try:
-        data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader)
-    except RecursionError:  # the parser recurses once per level: [[[[... 100,000 deep
-        raise TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few") from None
+        data = parse(text)
+    except RecursionError:  # the parsers recurse once per level: [[[[... 100,000 deep
+        raise _too_deep() from None
     _check_size(data)
     return data
+
+
+def _yaml(text: str) -> Any:
+    return _parsed(lambda t: yaml.load(t, Loader=_Loader), text)  # noqa: S506 (a SafeLoader)
 
 
 def _section_keys(loc: tuple) -> list[str]:
@@ -189,12 +198,7 @@ def _read_text(path: Path) -> str:
 
 
 def _toml(text: str) -> Any:
-    try:
-        data = tomllib.loads(text)
-    except RecursionError:
-        raise TooLarge(f"nested more than {MAX_DEPTH} levels deep; a scenario nests a few") from None
-    _check_size(data)
-    return data
+    return _parsed(tomllib.loads, text)
 
 
 def _read_file(path: Path) -> dict:
