@@ -12,6 +12,7 @@ or has flown out of the area (``target.walls: leave``), and is truncated after `
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -33,6 +34,7 @@ if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads i
 RENDER_MODES = ("rgb_array", "replay")
 MAX_JAM_PENALTY = 1e6
 MAX_SEED = 2**63 - 1  # the scenario's seed bound
+NOT_STARTED = "not started"
 
 
 def _check_replay_path(path) -> None:
@@ -83,7 +85,7 @@ class TrackjamParallelEnv(ParallelEnv):
         self._action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
         self._observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
         self._seed: int | None = None
-        self._ended: str | None = "not started"
+        self._ended: str | None = NOT_STARTED
 
     # -- spaces ----------------------------------------------------------------------------
 
@@ -121,8 +123,12 @@ class TrackjamParallelEnv(ParallelEnv):
         return obs, {a: {"t": 0, "seed": self._seed} for a in self.agents}
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
+        if self._ended == NOT_STARTED:
+            raise RuntimeError("step() before reset(): call reset() to start an episode")
         if not self.agents:
             raise RuntimeError(f"step() after the episode ended ({self._ended}); call reset()")
+        if not isinstance(actions, Mapping):
+            raise ValueError(f"actions: expected a dict {{agent: [move, level]}}, got {type(actions).__name__}")
         for name in actions:
             self._agent(name)
         missing = [a for a in self.agents if a not in actions]

@@ -8,7 +8,7 @@ compared run by run.
 
 from __future__ import annotations
 
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -68,6 +68,8 @@ def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
     with ``policy`` (its name), ``return`` (the summed shared reward), its two parts ``xi`` (summed
     Xi at the truth) and ``penalty`` (summed jam penalty), ``steps`` and ``end``.
     A policy with a ``reset(seed)`` method is reset at the start of each episode."""
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Iterable):
+        raise ValueError(f"rollout: seeds must be an iterable of integers >= 0 (one episode each), got {seeds!r}")
     rows = []
     for seed in seeds:
         seed = _seed(seed, "rollout")  # int() made 1.5 and 1.7 the same episode

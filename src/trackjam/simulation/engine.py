@@ -20,6 +20,7 @@ from trackjam.metrics.ospa import ospa
 from trackjam.metrics.summary import summarise
 from trackjam.radio.antenna import detection_probability, interference_matrix, received_power
 from trackjam.radio.measurement import sample_scan
+from trackjam.simulation.actions import checked_actions
 from trackjam.simulation.agent import Agent
 from trackjam.simulation.build import Components, build, one_target
 from trackjam.simulation.logs import RunLog
@@ -108,6 +109,8 @@ class Simulation:
         if self.done:
             raise RuntimeError(f"the run has ended (step {self.t} of {self.c.steps}); call reset()")
         c, team, truth = self.c, self.team, self.truth
+        if actions is not None:  # refused before the step changes anything
+            actions = checked_actions(actions, team.positions, c.displacements, len(c.antenna.levels_w), c.low, c.high)
         t0 = time.perf_counter()
         self.t = t = self.t + 1
         truth.step(t)

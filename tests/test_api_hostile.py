@@ -1,0 +1,158 @@
+"""The Python API at run time against a hostile caller: ``Simulation.step((moves, levels))`` and
+the learning environment's ``step``, ``reset`` and ``rollout`` with actions or seeds that are out
+of range, negative, fractional, NaN, of the wrong shape or kind, for missing or extra agents.
+Each raises one exception naming the argument, before the step changes anything (numpy read a
+negative index from the end, truncated 0.7 to 0, let a move leave the area, or failed deep
+inside with an IndexError after the truth had already moved)."""
+
+import numpy as np
+import pytest
+
+from trackjam.config import load_scenario
+from trackjam.env import parallel_env
+from trackjam.env.policies import random_policy, rollout
+from trackjam.simulation.engine import Simulation
+
+FAST = ["steps=3", "filter.particles=100", "filter.birth_particles=20", "control.solver=greedy"]
+N_MOVES, N_LEVELS = 79, 4  # paper-fig3: Eq. (3) with 3 radii x 8 x 8 directions, plus hover; off and 3 levels
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario("paper-fig3", FAST)
+
+
+def _state(sim):
+    # the truth's random stream: a step that had begun would have drawn from it
+    return sim.t, sim.truth.rng.bit_generator.state, sim.team.positions.copy()
+
+
+@pytest.mark.parametrize(
+    "actions, words",
+    [
+        (([-1, 0, 0], [0, 0, 0]), r"moves\[0\] = -1 is not an index in \[0, 78\]"),
+        (([0, 0, 0], [0, -1, 0]), r"levels\[1\] = -1 is not an index in \[0, 3\]"),
+        (([0, 0, N_MOVES], [0, 0, 0]), r"moves\[2\] = 79 is not an index in \[0, 78\]"),
+        (([0, 0, 0], [0, 0, N_LEVELS]), r"levels\[2\] = 4 is not an index in \[0, 3\]"),
+        (([0, 0, 0], np.array([0, 0, 2**64 - 1], dtype=np.uint64)), r"levels\[2\] = 18446744073709551615"),
+        (([0.7, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
+        (([0, 0, 0], [1.0, 0, 0]), "levels must be 3 integers"),
+        (([np.nan, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
+        (([True, False, False], [0, 0, 0]), "moves must be 3 integers"),
+        (([None, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
+        (([2**63, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
+        (("abc", [0, 0, 0]), "moves must be 3 integers"),
+        (([0, 0], [0, 0]), "moves must be 3 integers"),
+        (([0, 0, 0, 0], [0, 0, 0, 0]), "moves must be 3 integers"),
+        (([[0, 0, 0]], [[0, 0, 0]]), "moves must be 3 integers"),
+        (([0, [1, 2], 0], [0, 0, 0]), "moves must be 3 integers"),
+        ((0, 0), "moves must be 3 integers"),
+        (([0, 0, 0], [0, 0, 0], [0, 0, 0]), "expected a pair"),
+        (5, "expected a pair"),
+        ({"moves": [0, 0, 0], "levels": [0, 0, 0]}, "expected a pair"),
+        ("ab", "expected a pair"),
+    ],
+)
+def test_simulation_step_refuses_bad_actions_before_anything_moves(scenario, actions, words):
+    sim = Simulation(scenario)
+    t, truth, agents = _state(sim)
+    with pytest.raises(ValueError, match=r"^actions: .*" + words):
+        sim.step(actions)
+    assert sim.t == t and sim.truth.rng.bit_generator.state == truth and np.array_equal(sim.team.positions, agents)
+    sim.step(([0, 0, 0], [0, 0, 0]))  # the simulation is intact: a good action still steps it
+    assert sim.t == 1
+
+
+def test_a_move_out_of_the_area_is_refused_naming_the_agent():
+    # agent 1 on the floor: every displacement with a downward component leaves the area
+    s = load_scenario("paper-fig3", FAST + ["agents.initial=[[30, 30, 30], [20, 10, 0], [10, 15, 15]]"])
+    sim = Simulation(s)
+    D = sim.c.displacements
+    down = int(np.flatnonzero(D[:, 2] < 0)[0])
+    with pytest.raises(ValueError, match=rf"^actions: moves\[1\] = {down} takes agent 1 out of the area"):
+        sim.step(([0, down, 0], [0, 0, 0]))
+    assert sim.t == 0
+    up = int(np.flatnonzero(D[:, 2] > 0)[0])
+    rec = sim.step(([0, up, 0], [0, 0, 0]))
+    assert np.allclose(rec.agents["pos"][1] - rec.agents["prev"][1], D[up])
+
+
+def test_numpy_integers_of_any_width_are_actions(scenario):
+    sim = Simulation(scenario)
+    rec = sim.step((np.array([0, 5, 10], dtype=np.uint8), np.array([1, 2, 3], dtype=np.int32)))
+    assert rec.agents["level_index"].tolist() == [1, 2, 3]
+    assert np.allclose(rec.agents["pos"] - rec.agents["prev"], sim.c.displacements[[0, 5, 10]])
+
+
+def test_simulation_step_after_the_end_is_refused(scenario):
+    sim = Simulation(scenario)
+    while not sim.done:
+        sim.step()
+    with pytest.raises(RuntimeError, match="ended"):
+        sim.step(([0, 0, 0], [0, 0, 0]))
+
+
+AGENTS = ["agent_0", "agent_1", "agent_2"]
+
+
+def _actions(**changed):
+    return {**{a: np.array([0, 0]) for a in AGENTS}, **changed}
+
+
+@pytest.mark.parametrize(
+    "actions, words",
+    [
+        (None, r"^actions: expected a dict \{agent: \[move, level\]\}, got NoneType$"),
+        ([np.array([0, 0])] * 3, r"^actions: expected a dict .*got list$"),
+        (_actions(agent_0=np.array([-1, 0])), r"^agent_0: action .* is outside the action space"),
+        (_actions(agent_1=np.array([0, N_LEVELS])), r"^agent_1: action .* is outside the action space"),
+        (_actions(agent_2=np.array([0.5, 0])), r"^agent_2: action .* is outside the action space"),
+        (_actions(agent_0=np.array([np.nan, 0])), r"^agent_0: action .* is outside the action space"),
+        (_actions(agent_0=np.array([0, 0, 0])), r"^agent_0: action .* is outside the action space"),
+        (_actions(agent_0=None), r"^agent_0: action None is outside the action space"),
+        (_actions(agent_0=np.array([True, False])), r"^agent_0: action .* is outside the action space"),
+        ({"agent_0": np.array([0, 0])}, r"^no action for agent_1: every agent acts at every step$"),
+        (_actions(agent_9=np.array([0, 0])), r"^unknown agent 'agent_9'; the agents are agent_0, agent_1, agent_2$"),
+        (_actions(**{"5": np.array([0, 0])}), r"^unknown agent '5'"),
+    ],
+)
+def test_env_step_refuses_bad_actions_before_anything_moves(scenario, actions, words):
+    env = parallel_env(scenario)
+    env.reset(seed=1)
+    with pytest.raises(ValueError, match=words):
+        env.step(actions)
+    assert env.sim.t == 0
+    env.step(_actions())
+    assert env.sim.t == 1
+
+
+def test_env_step_before_reset_says_reset_first(scenario):
+    env = parallel_env(scenario)
+    with pytest.raises(RuntimeError, match=r"^step\(\) before reset\(\): call reset\(\) to start an episode$"):
+        env.step(_actions())
+
+
+def test_env_step_after_the_episode_says_it_ended(scenario):
+    env = parallel_env(scenario)
+    env.reset(seed=1)
+    while env.agents:
+        env.step(_actions())
+    with pytest.raises(RuntimeError, match=r"^step\(\) after the episode ended \(truncated after 3 steps\)"):
+        env.step(_actions())
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "3", 2**63, np.uint64(2**63), True, float("nan"), [1]])
+def test_env_reset_refuses_a_bad_seed_and_keeps_its_episode(scenario, seed):
+    env = parallel_env(scenario)
+    env.reset(seed=4)
+    env.step(_actions())
+    with pytest.raises(ValueError, match=r"^reset\(seed=.*\): the seed must be an integer in \[0, 2\^63 - 1\]$"):
+        env.reset(seed=seed)
+    assert env.sim.t == 1 and env.sim.c.seed == 4
+
+
+@pytest.mark.parametrize("seeds", [5, None, "12", b"1"])
+def test_rollout_refuses_seeds_that_are_not_a_list_of_them(scenario, seeds):
+    env = parallel_env(scenario)
+    with pytest.raises(ValueError, match=r"^rollout: seeds must be an iterable of integers >= 0"):
+        rollout(env, random_policy(env), seeds)
