@@ -3,6 +3,7 @@ target (a dot file holding ``.tmp``), then rename it into place."""
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -15,8 +16,12 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
 
     The temporary name keeps ``path``'s suffix (writers such as matplotlib infer the format from
-    it); on failure it is removed and nothing at ``path`` changes."""
+    it); on failure it is removed and nothing at ``path`` changes. Only a regular file (or
+    nothing) at ``path`` is replaced."""
     path = Path(path)
+    if path.exists() and not path.is_file():
+        # the rename would replace the node itself: as root, `--json /dev/null` replaced the device
+        raise OSError(errno.EINVAL, "not a regular file (a device, a pipe or a folder); it is not replaced", str(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMP_MARK + path.suffix, dir=path.parent)
     os.close(fd)
     try:

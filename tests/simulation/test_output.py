@@ -143,7 +143,7 @@ def test_a_full_disk_is_one_line_and_loses_nothing_written_before(tmp_path, smal
 
     def full_disk(table, path):
         calls.append(path)
-        if len(calls) == 2:  # agents.parquet, after scenario, summary and steps were rewritten
+        if len(calls) == 2:  # agents.parquet, after scenario and steps were rewritten
             with open(path, "wb") as f:
                 f.write(b"partial")
             raise OSError(errno.ENOSPC, "No space left on device")

@@ -97,6 +97,18 @@ def _print(group: str, rows: list[dict]) -> None:
         console.print(table)
 
 
+def _earlier_figures(path: Path) -> bool:
+    """``path`` holds what ``--json`` wrote before (a JSON object with the machine), which a new
+    run may replace."""
+    try:
+        if path.stat().st_size > 10_000_000:
+            return False
+        data = json.loads(path.read_bytes())
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and {"machine", "quick"} <= set(data)
+
+
 def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list[str] | None = None) -> dict:
     from trackjam.errors import ConfigError
 
@@ -109,6 +121,11 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
         json_out = Path(json_out)
         if json_out.is_dir():
             raise ConfigError(f"--json {json_out}: is a folder, not a file")
+        if json_out.exists() and not json_out.is_file():
+            raise ConfigError(f"--json {json_out}: is not a regular file (a device or a pipe); choose a file name")
+        if json_out.is_file() and not _earlier_figures(json_out):  # a run's summary.json was overwritten
+            raise ConfigError(f"--json {json_out}: exists and is not an earlier `trackjam bench --json` file; "
+                              "choose another name")
         if not json_out.absolute().parent.is_dir():
             raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not an existing folder")
         try:  # a real probe: os.access says yes to root even on read-only file systems

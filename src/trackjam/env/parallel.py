@@ -44,6 +44,8 @@ def _check_replay_path(path) -> None:
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"replay_path: {p} is a folder, not a file")
+    if p.exists() and not p.is_file():
+        raise ValueError(f"replay_path: {p} is not a regular file (a device or a pipe); render() would replace it")
     if not p.absolute().parent.is_dir():
         raise ValueError(f"replay_path: {p.absolute().parent} is not an existing folder")
 

@@ -30,6 +30,8 @@ from trackjam.errors import ConfigError
 CONNECT_TIMEOUT_S = 5.0
 HANDSHAKE_MAX_BYTES = 1 << 20  # a scheduler's handshake is ~60 bytes; garbage reads as exabytes
 PARENT_POLL_S = 0.2
+# Dask schemes over TCP whose server waits for the client: a refused port is found at once, as for tcp
+TCP_CARRIED = ("tls", "ws", "wss")
 _ADDRESS = re.compile(r"^(?:(?P<scheme>[a-z][a-z0-9+.-]*)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})/?$")
 
 
@@ -147,7 +149,11 @@ def parse_scheduler_address(address: str) -> tuple[str, str, int]:
     m = _ADDRESS.match(address.strip())
     if m is None or not 0 < int(m["port"]) < 65536:
         raise ConfigError(f"--scheduler {address!r}: not an address of the form tcp://HOST:PORT")
-    return (m["scheme"] or "tcp"), m["host"].strip("[]"), int(m["port"])
+    scheme = m["scheme"] or "tcp"
+    if scheme not in ("tcp", *TCP_CARRIED):
+        # ucx:// without ucx-py left a half-built client whose exit hung 10 s and printed a traceback
+        raise ConfigError(f"--scheduler {address!r}: scheme {scheme}:// is not supported; use tcp://, tls://, ws:// or wss://")
+    return scheme, m["host"].strip("[]"), int(m["port"])
 
 
 def _read_exactly(sock: socket.socket, n: int, deadline: float) -> bytes:
@@ -165,14 +171,15 @@ def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> 
     """Refuse, with one line and within about ``timeout_s``, an address that is not a reachable
     Dask scheduler speaking plain TCP."""
     scheme, host, port = parse_scheduler_address(address)
-    if scheme != "tcp":
-        return  # TLS, UCX, websockets: left to Dask's own connection timeout
     where = f"the Dask scheduler at {address}"
     deadline = time.monotonic() + timeout_s
     try:
         sock = socket.create_connection((host, port), timeout=timeout_s)
     except OSError as err:
         raise ConfigError(f"cannot reach {where} within {timeout_s:g} s: {err.strerror or err}") from None
+    if scheme in TCP_CARRIED:  # its server speaks second: only the connection is checked
+        sock.close()
+        return
     with sock:
         try:
             head = _read_exactly(sock, 8, deadline)
@@ -205,11 +212,18 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
     except ImportError:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'trackjam[dask]'") from None
     check_dask_scheduler(address)
+    if parse_scheduler_address(address)[0] == "tls":
+        from distributed.security import Security
+
+        # else Client fails with a TypeError and its half-built self hangs 10 s at exit
+        if Security().get_connection_args("client").get("ssl_context") is None:
+            raise ConfigError(f"--scheduler {address}: TLS needs a client certificate in Dask's configuration "
+                              "(distributed.comm.tls.*); none is set")
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as err:
-        msg = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise ConfigError(f"cannot reach the Dask scheduler at {address} within {CONNECT_TIMEOUT_S:g} s: {msg}") from None
+    except Exception as err:  # noqa: BLE001 - Dask's own refusals vary: a TypeError for TLS without a security configuration
+        msg = " ".join(str(err).split()) or type(err).__name__
+        raise ConfigError(f"cannot reach the Dask scheduler at {address}: {msg}") from None
     try:
         if not client.scheduler_info().get("workers"):  # else the sweep would wait without a word
             print(f"trackjam: the Dask scheduler at {address} has no workers yet; the trials wait for one",

@@ -24,7 +24,7 @@ import trackjam
 from trackjam.config import Scenario
 from trackjam.config.limits import check_trial_runs, check_workers, run_memory
 from trackjam.errors import ConfigError, OutputError
-from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor
+from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
     SWARM,
     Experiment,
@@ -258,6 +258,8 @@ def run_experiment(
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
     if workers is not None and scheduler:
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
+    if scheduler is not None:  # an empty one ran the trials locally, without a word
+        parse_scheduler_address(scheduler)
     overrides = list(overrides or [])
     out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
     check_trial_runs(trials, len(experiment.configurations))

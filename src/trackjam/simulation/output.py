@@ -100,7 +100,6 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         written.append(out / name)
 
     put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
-    put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
     tables = getattr(result, "tables", None) or {
         "steps": result.steps, "agents": result.agents, "measurements": result.measurements}
     for name, columns in tables.items():
@@ -116,4 +115,6 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         fs = figure_settings(result.scenario)
         put("run.png", lambda p: plot_run(result.steps, result.agents, fs, p))
         put("replay.html", lambda p: write_replay(result.steps, result.agents, fs, p))
+    # last: a new folder without it holds a run interrupted while writing (Ctrl-C, a full disk)
+    put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
     return written

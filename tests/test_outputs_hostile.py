@@ -1,0 +1,221 @@
+"""Outputs that must not be lost or corrupted, and a cluster that must not hang: a run
+interrupted by Ctrl-C while stepping or while writing, `bench --json` pointed at a run's
+summary.json or at a pipe (as root the rename replaced the node itself: `--json /dev/null`
+would have replaced the device), and `--scheduler` addresses that are empty, of a scheme this
+machine cannot speak, or refused. One line on stderr, the right exit status, no traceback, and
+what was there before is intact. Every address is on 127.0.0.1."""
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from trackjam.files import atomic_write
+
+FAST = ["steps=60", "filter.particles=100", "filter.birth_particles=20", "control.solver=greedy"]
+
+
+def _sets(items):
+    return [a for it in items for a in ("--set", it)]
+
+
+def _trackjam(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "trackjam", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def _one_line(r: subprocess.CompletedProcess, status: int = 2) -> str:
+    assert r.returncode == status, r.stderr
+    assert "Traceback" not in r.stderr
+    lines = [line for line in r.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, r.stderr
+    return lines[0]
+
+
+def _contents(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+# -- Ctrl-C ----------------------------------------------------------------------------------
+
+
+def _interrupted_run(out: Path, steps: list[str]) -> subprocess.CompletedProcess:
+    """``trackjam run`` sent SIGINT once it has printed step 3 (a pipe: one plain line a step)."""
+    p = subprocess.Popen([sys.executable, "-m", "trackjam", "run", "paper-fig3", *_sets(steps), "--no-figures",
+                          "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in p.stdout:
+        if "step 3/" in line:
+            break
+    p.send_signal(signal.SIGINT)
+    stdout, stderr = p.communicate(timeout=60)
+    return subprocess.CompletedProcess(p.args, p.returncode, stdout, stderr)
+
+
+def test_ctrl_c_while_stepping_writes_nothing(tmp_path):
+    out = tmp_path / "run"
+    r = _interrupted_run(out, FAST)
+    assert _one_line(r, status=130) == "trackjam: interrupted"
+    assert not out.exists()
+
+
+def test_ctrl_c_while_stepping_keeps_an_earlier_run_of_the_scenario_byte_for_byte(tmp_path):
+    out = tmp_path / "run"
+    assert _trackjam("run", "paper-fig3", *_sets(FAST), "--no-figures", "--out", str(out)).returncode == 0
+    before = _contents(out)
+    r = _interrupted_run(out, FAST)  # the very same scenario: accepted, then interrupted
+    assert _one_line(r, status=130) == "trackjam: interrupted"
+    assert _contents(out) == before
+
+
+@pytest.mark.parametrize("earlier", [False, True])
+def test_ctrl_c_while_writing_leaves_no_temporary_and_no_summary_of_the_new_run(tmp_path, monkeypatch, earlier):
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.simulation import logs
+
+    out = tmp_path / "run"
+    args = ["run", "paper-fig3", "--out", str(out), "--no-figures", *_sets(FAST[1:] + ["steps=3"])]
+    if earlier:
+        assert CliRunner().invoke(cli.app, args).exit_code == 0
+    before = _contents(out) if earlier else {}
+    real, calls = logs.write_parquet, []
+
+    def interrupted(table, path):
+        calls.append(path)
+        if len(calls) == 2:  # agents.parquet, after scenario.yaml and steps.parquet
+            Path(path).write_bytes(b"half a parquet")
+            raise KeyboardInterrupt
+        return real(table, path)
+
+    monkeypatch.setattr(logs, "write_parquet", interrupted)
+    r = CliRunner().invoke(cli.app, args)
+    assert r.exit_code == 130 and "trackjam: interrupted" in r.output and "Traceback" not in r.output
+    after = _contents(out)
+    assert not [name for name in after if name.startswith(".")]  # no temporary left behind
+    if earlier:  # the same scenario: the files from agents.parquet on keep the earlier run's bytes
+        assert set(after) == set(before)
+        for name in ("agents.parquet", "measurements.parquet", "summary.json"):
+            assert after[name] == before[name]
+    else:  # summary.json is written last: its absence says the run did not finish
+        assert sorted(after) == ["scenario.yaml", "steps.parquet"]
+    monkeypatch.setattr(logs, "write_parquet", real)
+    assert CliRunner().invoke(cli.app, args).exit_code == 0  # the rerun completes the folder
+    assert sorted(_contents(out)) == ["agents.parquet", "measurements.parquet", "scenario.yaml", "steps.parquet",
+                                      "summary.json"]
+
+
+# -- files that are not ours to replace ------------------------------------------------------
+
+
+def test_bench_json_refuses_a_runs_summary_and_keeps_it(tmp_path):
+    out = tmp_path / "run"
+    assert _trackjam("run", "paper-fig3", *_sets(FAST[1:] + ["steps=2"]), "--no-figures", "--out", str(out)).returncode == 0
+    before = (out / "summary.json").read_bytes()
+    r = _trackjam("bench", "--only", "env", "--quick", "--json", str(out / "summary.json"))
+    line = _one_line(r)
+    assert line == (f"trackjam: error: --json {out / 'summary.json'}: exists and is not an earlier "
+                    "`trackjam bench --json` file; choose another name")
+    assert "running" not in r.stdout and (out / "summary.json").read_bytes() == before
+
+
+def test_bench_json_refuses_a_pipe_and_leaves_it_a_pipe(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    line = _one_line(_trackjam("bench", "--only", "env", "--quick", "--json", str(fifo)))
+    assert line == f"trackjam: error: --json {fifo}: is not a regular file (a device or a pipe); choose a file name"
+    assert fifo.is_fifo()
+
+
+def test_bench_json_may_replace_its_own_earlier_figures(tmp_path):
+    from trackjam.benchmarks.report import _earlier_figures
+
+    (tmp_path / "b.json").write_text('{"machine": {"cores": 2}, "quick": true, "env": []}\n')
+    (tmp_path / "list.json").write_text('[1, 2]\n')
+    (tmp_path / "binary.json").write_bytes(b"\xff\xfe\x00")
+    assert _earlier_figures(tmp_path / "b.json")
+    assert not _earlier_figures(tmp_path / "list.json") and not _earlier_figures(tmp_path / "binary.json")
+
+
+def test_atomic_write_refuses_to_replace_what_is_not_a_regular_file(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(OSError, match="not a regular file") as err:
+        atomic_write(fifo, lambda p: p.write_text("x"))
+    assert err.value.filename == str(fifo)
+    assert fifo.is_fifo() and [p.name for p in tmp_path.iterdir()] == ["fifo"]
+    atomic_write(tmp_path / "plain", lambda p: p.write_text("x"))  # a new file, and then its replacement
+    atomic_write(tmp_path / "plain", lambda p: p.write_text("y"))
+    assert (tmp_path / "plain").read_text() == "y"
+
+
+def test_the_envs_replay_path_refuses_a_pipe_at_construction(tmp_path):
+    from trackjam.config import load_scenario
+    from trackjam.env import parallel_env
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match=r"^replay_path: .* is not a regular file \(a device or a pipe\)"):
+        parallel_env(load_scenario("paper-fig3", ["steps=2"]), render_mode="replay", replay_path=str(fifo))
+    assert fifo.is_fifo()
+
+
+# -- the Dask scheduler ----------------------------------------------------------------------
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture()
+def silent_port():
+    """A port on 127.0.0.1 that accepts connections and says nothing."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    accepted = []
+
+    def serve():
+        while True:
+            try:
+                accepted.append(server.accept()[0])
+            except OSError:
+                return
+
+    threading.Thread(target=serve, daemon=True).start()
+    yield server.getsockname()[1]
+    server.close()
+    for c in accepted:
+        c.close()
+
+
+def _experiment(scheduler: str, out: Path) -> subprocess.CompletedProcess:
+    return _trackjam("experiment", "constraints", "--trials", "1", "--steps", "2", "--scheduler", scheduler,
+                     "--out", str(out))
+
+
+@pytest.mark.parametrize(
+    "address, words",
+    [
+        ("", "--scheduler '': not an address of the form tcp://HOST:PORT"),  # ran the trials locally
+        ("  ", "--scheduler '  ': not an address of the form tcp://HOST:PORT"),
+        ("ucx://127.0.0.1:{free}", "scheme ucx:// is not supported; use tcp://, tls://, ws:// or wss://"),
+        ("inproc://127.0.0.1:{free}", "scheme inproc:// is not supported"),
+        ("tls://127.0.0.1:{free}", "cannot reach the Dask scheduler at tls://127.0.0.1:{free} within 5 s: Connection refused"),
+        ("ws://127.0.0.1:{free}", "cannot reach the Dask scheduler at ws://127.0.0.1:{free} within 5 s: Connection refused"),
+        ("wss://127.0.0.1:{free}", "cannot reach the Dask scheduler at wss://127.0.0.1:{free} within 5 s: Connection refused"),
+        ("tls://127.0.0.1:{silent}", "TLS needs a client certificate in Dask's configuration"),
+    ],
+)
+def test_a_scheduler_that_cannot_be_used_is_one_line_before_anything_is_written(tmp_path, silent_port, address, words):
+    free = _free_port()
+    address, words = (x.format(free=free, silent=silent_port) for x in (address, words))
+    line = _one_line(_experiment(address, tmp_path / "out"))
+    assert line.startswith("trackjam: error: ") and words in line
+    assert not (tmp_path / "out").exists()
