@@ -16,12 +16,12 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
 
     The temporary name keeps ``path``'s suffix (writers such as matplotlib infer the format from
-    it); on failure it is removed and nothing at ``path`` changes. Only a regular file (or
-    nothing) at ``path`` is replaced."""
+    it); on failure it is removed and nothing at ``path`` changes. A device or a pipe at
+    ``path`` is not replaced."""
     path = Path(path)
-    if path.exists() and not path.is_file():
+    if path.exists() and not path.is_file() and not path.is_dir():  # a folder: the rename refuses it
         # the rename would replace the node itself: as root, `--json /dev/null` replaced the device
-        raise OSError(errno.EINVAL, "not a regular file (a device, a pipe or a folder); it is not replaced", str(path))
+        raise OSError(errno.EINVAL, "not a regular file (a device or a pipe); it is not replaced", str(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMP_MARK + path.suffix, dir=path.parent)
     os.close(fd)
     try:
