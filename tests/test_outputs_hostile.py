@@ -219,3 +219,23 @@ def test_a_scheduler_that_cannot_be_used_is_one_line_before_anything_is_written(
     line = _one_line(_experiment(address, tmp_path / "out"))
     assert line.startswith("trackjam: error: ") and words in line
     assert not (tmp_path / "out").exists()
+
+
+def test_an_experiment_of_one_trial_prints_its_means_without_nan(tmp_path):
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.experiments.cli import _mean_ci
+
+    r = CliRunner().invoke(cli.app, ["experiment", "constraints", "--trials", "1", "--steps", "2", "--workers", "1",
+                                     "--out", str(tmp_path / "e"), *_sets(["filter.particles=100", "filter.birth_particles=20"])])
+    assert r.exit_code == 0, r.output
+    assert "nan" not in r.output.lower()  # one trial has no interval: it printed "0.5 ± nan"
+    assert (_mean_ci(0.5, float("nan")), _mean_ci(0.5, 0.25), _mean_ci(float("nan"), float("nan"))) == ("0.5", "0.5 ± 0.25", "-")
+
+
+@pytest.mark.parametrize("seed", ["-1", str(2**63)])
+def test_a_run_seed_out_of_range_blames_the_option_not_the_preset(tmp_path, seed):
+    line = _one_line(_trackjam("run", "paper-fig3", "--seed", seed, "--out", str(tmp_path / "out")))
+    assert line == f"trackjam: error: --seed {seed}: must be an integer in [0, 2^63 - 1]"
+    assert not (tmp_path / "out").exists()

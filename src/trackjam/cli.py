@@ -99,6 +99,10 @@ def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
     from trackjam.config import load_scenario
     from trackjam.config.warnings import scenario_warnings
 
+    if seed is not None and not 0 <= seed <= 2**63 - 1:  # else the preset or file was blamed for it
+        from trackjam.errors import ConfigError
+
+        raise ConfigError(f"--seed {seed}: must be an integer in [0, 2^63 - 1]")
     fields = {} if seed is None else {"seed": seed}
     s = load_scenario(scenario, overrides or [], **fields)
     for line in scenario_warnings(s):

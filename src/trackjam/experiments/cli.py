@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from trackjam.experiments.engine import run_experiment
@@ -49,9 +50,16 @@ def experiment_command(
         table.add_column(stem, justify="right")
     table.add_column("step [s]", justify="right")
     for row, timing in zip(result.summary, result.timing):
-        cells = [f"{row[f'{s}_mean']:.3g} ± {row[f'{s}_ci95']:.2g}" for s, _, _ in experiment.metrics]
+        cells = [_mean_ci(row[f"{s}_mean"], row[f"{s}_ci95"]) for s, _, _ in experiment.metrics]
         cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
         table.add_row(str(row["config"]), row["label"], str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
     Console(width=220).print(table)
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")
+
+
+def _mean_ci(mean, ci) -> str:
+    """``mean ± ci``; one trial has no interval (it printed "± nan"), no value prints "-"."""
+    if mean is None or not math.isfinite(mean):
+        return "-"
+    return f"{mean:.3g}" if ci is None or not math.isfinite(ci) else f"{mean:.3g} ± {ci:.2g}"
