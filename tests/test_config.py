@@ -64,6 +64,7 @@ def test_overrides_are_dotted_and_validated():
     "override, key, words",
     [
         ("antenna.heigth=3", "antenna.heigth", "unknown key"),
+        ("filter.cue.velocity=fast", "filter.cue.velocity", "'zero' or 'target'"),
         ("steps=abc", "steps", "integer"),
         ("antenna.height=-3", "antenna.height", "greater than 0"),
         ("antenna.opening_angle_deg=180", "antenna.opening_angle_deg", "[0.1, 170]"),

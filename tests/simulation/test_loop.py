@@ -157,3 +157,20 @@ def test_a_jammed_target_lands_and_the_run_reports_when():
     assert np.all(received[(t > downed - 3) & (t <= downed)] >= 0.1)
     z = r.steps["truth_z"][t > downed]
     assert np.all(np.diff(z) <= 1e-9) and z[-1] < r.steps["truth_z"][t == downed][0]
+
+
+@pytest.mark.parametrize("velocity", ["zero", "target"])
+def test_the_cue_starts_every_filter_where_eq1_predicts_the_first_position(velocity):
+    """filter.cue.velocity: zero cues [x_1, 0]; target cues [x_1 - v_1, v_1], v_1 the target's
+    first velocity, so both predict (Eq. 1 without noise) to the first position x_1."""
+    from trackjam.simulation.engine import Simulation
+
+    s = load_scenario("paper-fig3", overrides=["filter.particles=500", "filter.birth_particles=100",
+                                               f"filter.cue.velocity={velocity}"])
+    sim = Simulation(s)
+    first = np.asarray(s.target.initial, dtype=float)
+    v = first[3:6] if velocity == "target" else np.zeros(3)
+    for agent in sim.team.agents:
+        mean = agent.filter._last.mean  # the cue's Gaussian, set exactly by reset_to
+        np.testing.assert_array_equal(mean, np.concatenate([first[:3] - v, v]))
+        np.testing.assert_allclose(mean[:3] + mean[3:6], first[:3], atol=1e-12)

@@ -302,3 +302,29 @@ def test_the_team_objective_is_the_configured_one(monkeypatch, objective):
     r = simulate(two(f"control.team_objective={objective}", solver="exact"))
     assert seen and set(seen) == {objective}
     assert np.all(np.isfinite(r.steps["objective"][r.steps["mode"] == "track"]))
+
+
+def test_cue_tracks_with_velocities_predict_to_the_first_position():
+    """filter.cue.velocity: target: particles around [x - v, v], whose Eq. (1) prediction
+    (x + v, before noise) is the first position x."""
+    s = two("filter.particles=4000")
+    lmb = LMBFilter(lmb_params(s), build_swarm(s).base.antenna, np.random.default_rng(0))
+    first = np.array([[20.0, 20, 20], [60, 60, 60]])
+    v = np.array([[1.5, -2.0, 0.5], [0.0, 3.0, -1.0]])
+    tracks = cue_tracks(lmb, first, [True, True], (0.9, 2.0, 1.0), v)
+    for k, track in enumerate(tracks):
+        mean, cov = weighted_moments(track.X, np.exp(track.log_w))
+        np.testing.assert_allclose(mean, np.concatenate([first[k] - v[k], v[k]]), atol=0.2)
+        np.testing.assert_allclose(np.sqrt(np.diag(cov)), [2.0] * 3 + [1.0] * 3, rtol=0.06)
+        predicted = track.X[:, :3] + track.X[:, 3:6]
+        np.testing.assert_allclose(np.average(predicted, axis=0, weights=np.exp(track.log_w)), first[k], atol=0.25)
+
+
+def test_the_swarm_cue_velocity_is_each_targets_first_velocity():
+    s = two("filter.particles=2000", "filter.cue.velocity=target")
+    sim = SwarmSimulation(s)
+    v = np.array([t.initial[3:6] for t in s.targets])
+    for a in sim.agents:
+        for track in a.filter.tracks:
+            k = track.label[1]
+            np.testing.assert_allclose(np.average(track.X[:, 3:6], axis=0, weights=np.exp(track.log_w)), v[k], atol=0.2)

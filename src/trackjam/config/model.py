@@ -295,7 +295,12 @@ class Cue(_Model):
         2.0, description=f"standard deviation of the initial position around agents.initial_aim [m], in (0, {MAX_LENGTH:g}]"
     )
     velocity_std: Real(gt=0, le=MAX_SPEED) = Field(
-        2.0, description=f"standard deviation of the initial velocity around 0 [m/s], in (0, {MAX_SPEED:g}]"
+        2.0, description=f"standard deviation of the initial velocity around its mean [m/s], in (0, {MAX_SPEED:g}]"
+    )
+    velocity: Literal["zero", "target"] = Field(
+        "zero",
+        description="mean of the initial velocity (ours): `zero` (at rest) or `target` (the target's velocity when it "
+                    "first appears, as a tracking radar's cue gives a velocity with the position)",
     )
 
 

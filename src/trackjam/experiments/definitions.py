@@ -134,6 +134,7 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("aim + report spread <= 8 m", {"antenna.pointing": "aim", "fusion.report_spread": 8.0}),
     ("aim + scans shared + hidden-target mode", {"antenna.pointing": "aim", "fusion.share": "scans",
                                                   "filter.visibility": {"hide": 0.05, "reappear": 0.25}}),
+    ("aim + cue with the target's velocity", {"antenna.pointing": "aim", "filter.cue.velocity": "target"}),
     ("preset pursuit", preset_settings("pursuit")),
 )
 

@@ -70,12 +70,16 @@ class Agent:
 
     @classmethod
     def create(cls, index: int, position, aim, bf: BernoulliFilter, cue: tuple[float, float, float] | None,
-               sensor_seed: np.random.SeedSequence, plan_seed: np.random.SeedSequence) -> "Agent":
+               sensor_seed: np.random.SeedSequence, plan_seed: np.random.SeedSequence,
+               cue_velocity=None) -> "Agent":
         """An agent at ``position`` aimed at ``aim``; ``cue`` = (e_0, position std, velocity std)
-        starts its filter from a Gaussian around the aim (ours, ``filter.cue``)."""
+        starts its filter from a Gaussian around the aim (ours, ``filter.cue``), at rest, or with
+        mean velocity ``cue_velocity`` v: then around [aim - v, v], the state whose prediction
+        by Eq. (1) puts the mean at the aim at step 1."""
         if cue is not None:
             existence, pos_std, vel_std = cue
-            mean = np.concatenate([np.asarray(aim, dtype=float), np.zeros(3)])
+            v = np.zeros(3) if cue_velocity is None else np.asarray(cue_velocity, dtype=float)
+            mean = np.concatenate([np.asarray(aim, dtype=float) - v, v])
             cov = np.diag([pos_std**2] * 3 + [vel_std**2] * 3)
             bf.reset_to(existence, mean, cov)
         return cls(

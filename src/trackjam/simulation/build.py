@@ -144,6 +144,7 @@ class Components:
     target: TargetParams
     make_filter: Callable[[np.random.Generator], BernoulliFilter]  # one agent's filter from its stream
     cue: tuple[float, float, float] | None  # filter.cue as (e_0, position std [m], velocity std [m/s])
+    cue_velocity: bool  # filter.cue.velocity: target (the cue's velocity is the target's first one; else at rest)
 
     def seed_tree(self) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]], np.random.SeedSequence]:
         return seed_tree(self.seed, self.n_agents)
@@ -205,6 +206,7 @@ def build(s: Scenario) -> Components:
         make_filter=partial(BernoulliFilter, filter_params(s), antenna_model(s)),
         cue=None if s.filter.cue is None else (s.filter.cue.existence, s.filter.cue.position_std,
                                                s.filter.cue.velocity_std),
+        cue_velocity=s.filter.cue is not None and s.filter.cue.velocity == "target",
     )
 
 

@@ -92,9 +92,12 @@ class Simulation:
         c = self.c
         truth_seed, agent_seeds, comms_seed = c.seed_tree()
         self.truth = TruthTarget(c.target, np.random.default_rng(truth_seed))
-        aim = c.initial_aim if c.initial_aim is not None else self.truth.first_state[:3]
+        first = self.truth.first_state
+        aim = c.initial_aim if c.initial_aim is not None else first[:3]
+        velocity = first[3:6] if c.cue_velocity else None
         agents = [
-            Agent.create(j, u, aim, c.make_filter(np.random.default_rng(filter_seed)), c.cue, sensor_seed, plan_seed)
+            Agent.create(j, u, aim, c.make_filter(np.random.default_rng(filter_seed)), c.cue, sensor_seed, plan_seed,
+                         velocity)
             for j, (u, (filter_seed, sensor_seed, plan_seed)) in enumerate(zip(c.initial_positions, agent_seeds))
         ]
         self.team = Team(agents, c.team, np.random.default_rng(comms_seed))

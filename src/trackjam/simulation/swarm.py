@@ -110,18 +110,21 @@ class SwarmResult:
 
 
 def cue_tracks(lmb: LMBFilter, first: np.ndarray, present: list[bool],
-               cue: tuple[float, float, float]) -> list[Track]:
+               cue: tuple[float, float, float], velocities: np.ndarray | None = None) -> list[Track]:
     """``filter.cue`` for several targets (ours): the team is briefed, as the one-target engine
     is, on where each target present from step 1 is first seen; every agent's filter starts with
     one track per such target, labelled (0, k), existence e_0, particles from a Gaussian around
-    its first position (position std, velocity std as ``cue``), at rest."""
+    its first position (position std, velocity std as ``cue``), at rest, or, given
+    ``velocities`` (K, 3) (``filter.cue.velocity: target``), around [x - v_k, v_k], which Eq. (1)
+    predicts to x at step 1."""
     existence, pos_std, vel_std = cue
     n = lmb.p.particles
     tracks = []
     for k, (x, here) in enumerate(zip(first, present)):
         if not here or not np.all(np.isfinite(x)):
             continue
-        X = np.concatenate([x, np.zeros(3)]) + lmb.rng.standard_normal((n, 6)) * np.array([pos_std] * 3 + [vel_std] * 3)
+        v = np.zeros(3) if velocities is None else velocities[k]
+        X = np.concatenate([x - v, v]) + lmb.rng.standard_normal((n, 6)) * np.array([pos_std] * 3 + [vel_std] * 3)
         tracks.append(Track((0, k), float(existence), X, np.full(n, -np.log(n))))
     return tracks
 
@@ -195,7 +198,8 @@ class SwarmSimulation:
             aim = centre if not np.all(np.isfinite(aim)) else aim
             lmb = LMBFilter(c.lmb, b.antenna, np.random.default_rng(filter_seed))
             if b.cue is not None:
-                lmb.tracks = cue_tracks(lmb, first, [p.appears <= 1 and p.stochastic is None for p in c.targets], b.cue)
+                lmb.tracks = cue_tracks(lmb, first, [p.appears <= 1 and p.stochastic is None for p in c.targets], b.cue,
+                                        self.truth.first_velocities if b.cue_velocity else None)
             self.agents.append(SwarmAgent(j, np.array(u, dtype=float), np.array(aim, dtype=float), lmb,
                                           np.random.default_rng(sensor_seed), np.random.default_rng(plan_seed)))
         self.memory = SearchMemory(b.team.accel_var) if b.team.searching else None

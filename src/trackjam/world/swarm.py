@@ -96,6 +96,16 @@ class TruthSwarm:
         return [t.downed_at for t in self.targets]
 
     @property
+    def first_velocities(self) -> np.ndarray:
+        """(K, 3) the velocity each target will appear with; NaN rows for those that have appeared."""
+        out = np.full((len(self), 3), np.nan)
+        for k, target in enumerate(self.targets):
+            first = target.first_state
+            if first is not None:
+                out[k] = first[3:6]
+        return out
+
+    @property
     def first_positions(self) -> np.ndarray:
         """(K, 3) where each target will appear; NaN rows for those that have appeared."""
         out = np.full((len(self), 3), np.nan)
