@@ -95,22 +95,21 @@ class TruthSwarm:
         """Each target's step of the fail-safe's start (None: not downed)."""
         return [t.downed_at for t in self.targets]
 
-    @property
-    def first_velocities(self) -> np.ndarray:
-        """(K, 3) the velocity each target will appear with; NaN rows for those that have appeared."""
-        out = np.full((len(self), 3), np.nan)
+    def _first_states(self) -> np.ndarray:
+        """(K, 6) the state each target will appear with; NaN rows for those that have appeared."""
+        out = np.full((len(self), 6), np.nan)
         for k, target in enumerate(self.targets):
             first = target.first_state
             if first is not None:
-                out[k] = first[3:6]
+                out[k] = first[:6]
         return out
+
+    @property
+    def first_velocities(self) -> np.ndarray:
+        """(K, 3) the velocity each target will appear with; NaN rows for those that have appeared."""
+        return self._first_states()[:, 3:6]
 
     @property
     def first_positions(self) -> np.ndarray:
         """(K, 3) where each target will appear; NaN rows for those that have appeared."""
-        out = np.full((len(self), 3), np.nan)
-        for k, target in enumerate(self.targets):
-            first = target.first_state
-            if first is not None:
-                out[k] = first[:3]
-        return out
+        return self._first_states()[:, :3]
