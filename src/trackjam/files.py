@@ -12,6 +12,13 @@ from typing import Callable
 TEMP_MARK = ".tmp"
 
 
+def special_file(path: Path) -> bool:
+    """``path`` is a device, a pipe or a socket: neither a regular file nor a folder. A rename
+    onto it would replace the node itself (as root, ``--json /dev/null`` replaced the device)."""
+    path = Path(path)
+    return path.exists() and not path.is_file() and not path.is_dir()
+
+
 def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
 
@@ -19,8 +26,7 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     it); on failure it is removed and nothing at ``path`` changes. A device or a pipe at
     ``path`` is not replaced."""
     path = Path(path)
-    if path.exists() and not path.is_file() and not path.is_dir():  # a folder: the rename refuses it
-        # the rename would replace the node itself: as root, `--json /dev/null` replaced the device
+    if special_file(path):  # (a folder the rename itself refuses)
         raise OSError(errno.EINVAL, "not a regular file (a device or a pipe); it is not replaced", str(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMP_MARK + path.suffix, dir=path.parent)
     os.close(fd)

@@ -111,6 +111,7 @@ def _earlier_figures(path: Path) -> bool:
 
 def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list[str] | None = None) -> dict:
     from trackjam.errors import ConfigError
+    from trackjam.files import special_file
 
     groups = _groups(quick)
     chosen = only or list(groups)
@@ -121,7 +122,7 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
         json_out = Path(json_out)
         if json_out.is_dir():
             raise ConfigError(f"--json {json_out}: is a folder, not a file")
-        if json_out.exists() and not json_out.is_file():
+        if special_file(json_out):
             raise ConfigError(f"--json {json_out}: is not a regular file (a device or a pipe); choose a file name")
         if json_out.is_file() and not _earlier_figures(json_out):  # a run's summary.json was overwritten
             raise ConfigError(f"--json {json_out}: exists and is not an earlier `trackjam bench --json` file; "

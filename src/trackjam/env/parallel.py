@@ -24,6 +24,7 @@ from pettingzoo import ParallelEnv
 from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
+from trackjam.files import special_file
 from trackjam.simulation.build import figure_settings, is_scenario, with_seed
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
@@ -44,7 +45,7 @@ def _check_replay_path(path) -> None:
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"replay_path: {p} is a folder, not a file")
-    if p.exists() and not p.is_file():
+    if special_file(p):
         raise ValueError(f"replay_path: {p} is not a regular file (a device or a pipe); render() would replace it")
     if not p.absolute().parent.is_dir():
         raise ValueError(f"replay_path: {p.absolute().parent} is not an existing folder")
