@@ -190,6 +190,7 @@ class SwarmSimulation:
         truth_seed, agent_seeds, _ = b.seed_tree()
         self.truth = TruthSwarm.from_seed(c.targets, c.ids, truth_seed)
         first = self.truth.first_positions
+        velocities = self.truth.first_velocities if b.cue_velocity else None
         centre = (b.low + b.high) / 2
         self.agents = []
         for j, (u, (filter_seed, sensor_seed, plan_seed)) in enumerate(zip(b.initial_positions, agent_seeds)):
@@ -199,7 +200,7 @@ class SwarmSimulation:
             lmb = LMBFilter(c.lmb, b.antenna, np.random.default_rng(filter_seed))
             if b.cue is not None:
                 lmb.tracks = cue_tracks(lmb, first, [p.appears <= 1 and p.stochastic is None for p in c.targets], b.cue,
-                                        self.truth.first_velocities if b.cue_velocity else None)
+                                        velocities)
             self.agents.append(SwarmAgent(j, np.array(u, dtype=float), np.array(aim, dtype=float), lmb,
                                           np.random.default_rng(sensor_seed), np.random.default_rng(plan_seed)))
         self.memory = SearchMemory(b.team.accel_var) if b.team.searching else None
