@@ -21,3 +21,10 @@ def test_bench_filter_step_times_a_filter_that_tracks(particles, birth_particles
     assert r["existence"] > 0.99
     assert r["error_m"] < 1.5
     assert r["particles"] == particles and r["measurements"] == 4 and r["birth"] == "uniform"
+
+
+def test_bench_filter_step_with_the_mode_estimate_times_that_filter():
+    r = bench_filter_step(repeats=5, seed=1, particles=3_000, birth_particles=500, mode=(5.0, 0.2))
+    assert r["mode"] == [5.0, 0.2] and r["existence"] > 0.99
+    assert r["error_m"] < 1.5  # the mode of a filter locked on its target is the target
+    assert bench_filter_step(repeats=2, seed=1, particles=3_000, birth_particles=500)["mode"] is None

@@ -27,6 +27,8 @@ def _groups(quick: bool) -> dict:
 
     return {
         "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)},
+                           {"name": "Bernoulli filter step, estimate at the mode (filter.mode 5 m, 0.2)",
+                            **filter.bench_filter_step(repeats=20 if quick else 200, mode=(5.0, 0.2))},
                            {"name": "LMB filter step, 3 targets", **lmb.bench_lmb_step(repeats=5 if quick else 100)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [*(run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")),

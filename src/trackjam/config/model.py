@@ -312,6 +312,19 @@ class Visibility(_Model):
     reappear: Prob = Field(description="probability per step that a hidden target becomes visible again, in [0, 1]")
 
 
+class Mode(_Model):
+    """The filter's point estimate at the mode of its density (ours)."""
+
+    radius: Length = Field(
+        5.0, description=f"the estimate is the moments of the particles within this of the densest point [m], "
+                         f"in (0, {MAX_LENGTH:g}]",
+    )
+    mass: Real(gt=0, le=1) = Field(
+        0.2, description="the least share of the density's weight within `radius` for the estimate to be taken there "
+                         "(else the mean of all the particles), in (0, 1]",
+    )
+
+
 class Filter(_Model):
     """Each agent's Bernoulli particle filter (Section V-A)."""
 
@@ -353,6 +366,12 @@ class Filter(_Model):
         description="hidden-target mode (ours): {hide, reappear} per-step probabilities; misses are then explained by "
         "a target out of sight as well as by one that died, and the team reports a target while P(exists and visible) > 0.5; "
         "null: the paper's filter, every existing target visible",
+    )
+    mode: Mode | None = Field(
+        None,
+        description="point estimate at the mode (ours): {radius, mass}: after each update an agent reports the mean and "
+        "covariance of the particles within `radius` of the densest point of its density when they hold at least "
+        "`mass` of its weight, else of all of them; null: the mean of all (the paper)",
     )
 
 

@@ -29,6 +29,14 @@ step (the *young* component, born at t-1 and seen once) is kept apart, as a weig
 mass, for one step: when the next scan comes in it is drawn again by the two-scan proposal, whose
 velocities join the two scans. The rest of s_t is resampled to ``n`` particles.
 
+The point estimate (``filter.mode``, ours): the paper reports the mean and covariance of all of
+s_t. A belief that has spread out over where a lost target may be can be split between a mode
+that the last detections support and a wide remainder; its mean then lies between the two, and
+its spread says nothing is located. With ``filter.mode`` = (r, m) the posterior estimate is the
+mean and covariance of the particles within r metres of the densest point of s_t
+(:func:`mode_moments`), when they hold at least m of its weight; otherwise the paper's moments.
+The predicted estimate (the planning aim) is the paper's.
+
 The filter starts with ``e_0 = 0`` (nothing is known) and its particles drawn from the uniform
 birth density, so that ``reset_to`` or a later birth has something to work with.
 """
@@ -52,8 +60,12 @@ from trackjam.estimation.birth import (
     redraw_young,
 )
 from trackjam.estimation.kernels import (
+    MODE_MAX_CELLS,
+    MODE_SHIFTS,
     kernel_cv_predict,
     kernel_logsumexp,
+    kernel_masked_moments,
+    kernel_mode_cluster,
     kernel_reflect,
     kernel_systematic_indices,
     kernel_update_factors,
@@ -133,6 +145,49 @@ def weighted_moments(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return kernel_weighted_moments(np.ascontiguousarray(X), np.ascontiguousarray(w, dtype=float))
 
 
+MODE_CELL_SHARE = 0.8  # the mode's grid cell, as a share of filter.mode.radius
+
+
+def mode_cluster_reference(X: np.ndarray, w: np.ndarray, radius: float, cell: float
+                           ) -> tuple[np.ndarray, float, np.ndarray]:
+    """Plain-numpy twin of :func:`~trackjam.estimation.kernels.kernel_mode_cluster`: the heaviest
+    grid cell's weighted mean, mean-shifted MODE_SHIFTS times with a flat kernel of ``radius``;
+    (centre, weight within ``radius`` of it, that mask)."""
+    P = np.asarray(X, dtype=float)[:, :3]
+    w = np.asarray(w, dtype=float)
+    while True:
+        lo = np.floor(P.min(axis=0) / cell).astype(np.int64)
+        dims = np.floor(P.max(axis=0) / cell).astype(np.int64) - lo + 1
+        if np.prod(dims) <= MODE_MAX_CELLS:
+            break
+        cell *= 2.0
+    cells = np.floor(P / cell).astype(np.int64) - lo
+    idx = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
+    best = int(np.argmax(np.bincount(idx, weights=w, minlength=int(np.prod(dims)))))
+    sel = idx == best
+    centre = w[sel] @ P[sel] / w[sel].sum() if w[sel].sum() > 0 else P[sel].mean(axis=0)
+    for step in range(MODE_SHIFTS + 1):
+        inside = np.sum((P - centre) ** 2, axis=1) < radius * radius
+        mass = float(w[inside].sum())
+        if step == MODE_SHIFTS or mass <= 0.0:
+            break
+        centre = w[inside] @ P[inside] / mass
+    return centre, mass, inside
+
+
+def mode_moments(X: np.ndarray, w: np.ndarray, radius: float, least: float
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``filter.mode``: mean and covariance of the particles ``X`` within ``radius`` of the
+    densest point of the weighted set (normalised weights ``w``), when they hold at least
+    ``least`` of the weight; None otherwise."""
+    X = np.ascontiguousarray(X)
+    w = np.ascontiguousarray(w, dtype=float)
+    _, mass, inside = kernel_mode_cluster(X, w, float(radius), MODE_CELL_SHARE * float(radius))
+    if not mass > 0.0 or mass < least:
+        return None
+    return kernel_masked_moments(X, w, inside, mass)
+
+
 def mixture_moments(parts: list[tuple[float, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     """Mean and covariance of a mixture given ``(weight, mean, cov)`` of each component."""
     mean = sum(a * m for a, m, _ in parts)
@@ -209,6 +264,7 @@ class FilterParams:
     noise_std: np.ndarray  # (3,) Sigma_w diagonal as standard deviations
     clutter_rate: float  # lambda_c
     visibility: tuple[float, float] | None = None  # (hide, reappear) per step; None: always visible (the paper)
+    mode: tuple[float, float] | None = None  # filter.mode (radius [m], least weight); None: the mean of s_t (the paper)
 
 
 class BernoulliFilter:
@@ -256,6 +312,9 @@ class BernoulliFilter:
         self.n_young = max((self.n_b - self.n_mb) // 2, 1)
 
         self.visibility = None if f.visibility is None else (float(f.visibility[0]), float(f.visibility[1]))
+        self.mode = None if f.mode is None else (float(f.mode[0]), float(f.mode[1]))
+        if self.mode is not None and not (self.mode[0] > 0.0 and 0.0 < self.mode[1] <= 1.0):
+            raise ValueError(f"mode must be (radius > 0, least weight in (0, 1]), got {self.mode}")
         self.nu = 1.0  # P(visible | the target exists), after the last update
         self.nu_pred = 1.0  # the same predicted to the current step
         self.log_evidence = 0.0  # log sum_i w_i L_i of the last update: its evidence were the target visible
@@ -380,6 +439,8 @@ class BernoulliFilter:
         w = np.exp(log_post)
         w /= w.sum()
         mean, cov = weighted_moments(X, w)
+        if self.mode is not None:
+            mean, cov = mode_moments(X, w, *self.mode) or (mean, cov)
         # the uniform-born part becomes the young component, the rest is resampled to the
         # particles left of n: the step keeps n + n_b particles in all
         k = len(X) - n_u if self.two_scan else len(X)

@@ -303,3 +303,130 @@ def kernel_two_scan_velocity(P, V, mu, chol, Linv, log_det, sd, v_b, dt, blind, 
         hi = max(log_blind, log_aimed)
         out[i] = hi + math.log1p(math.exp(min(log_blind, log_aimed) - hi)) if hi > -np.inf else -np.inf
     return out
+
+
+MODE_MAX_CELLS = 1 << 21  # the mode's grid: its cell doubles until the particles' box holds at most this many
+MODE_SHIFTS = 4  # mean-shift steps from the heaviest cell (filter.mode)
+
+
+@njit(cache=True)
+def _mode_grid(X, cell):
+    """The grid of :func:`kernel_mode_cluster`: cell size (doubled from ``cell`` until the box of
+    the particles' positions holds at most MODE_MAX_CELLS cells), the box's lowest cell index and
+    its cell counts."""
+    lo = np.empty(3, dtype=np.int64)
+    dims = np.empty(3, dtype=np.int64)
+    mn = np.empty(3)
+    mx = np.empty(3)
+    for a in range(3):
+        mn[a] = X[0, a]
+        mx[a] = X[0, a]
+    for i in range(1, X.shape[0]):
+        for a in range(3):
+            mn[a] = min(mn[a], X[i, a])
+            mx[a] = max(mx[a], X[i, a])
+    while True:
+        total = 1
+        for a in range(3):
+            lo[a] = int(math.floor(mn[a] / cell))
+            dims[a] = int(math.floor(mx[a] / cell)) - lo[a] + 1
+            total *= dims[a]
+        if total <= MODE_MAX_CELLS:
+            return cell, lo, dims
+        cell *= 2.0
+
+
+@njit(cache=True)
+def kernel_mode_cluster(X, w, radius, cell):
+    """The densest cluster of particles ``X`` (n, >= 3) with weights ``w`` (n,): the weighted
+    mean of the particles in the heaviest cell of a grid of ``cell`` metres (cells at multiples
+    of the cell size; a box too large for MODE_MAX_CELLS cells doubles it), moved MODE_SHIFTS
+    times to the weighted mean of the particles within ``radius`` of it (mean shift with a flat
+    kernel). Returns (centre (3,), the weight within ``radius`` of it, that mask (n,) bool).
+    Ties between cells go to the first in x-major order. Plain-numpy twin:
+    ``trackjam.estimation.bernoulli.mode_cluster_reference``."""
+    n = X.shape[0]
+    cell, lo, dims = _mode_grid(X, cell)
+    grid = np.zeros(dims[0] * dims[1] * dims[2])
+    idx = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        ix = int(math.floor(X[i, 0] / cell)) - lo[0]
+        iy = int(math.floor(X[i, 1] / cell)) - lo[1]
+        iz = int(math.floor(X[i, 2] / cell)) - lo[2]
+        idx[i] = (ix * dims[1] + iy) * dims[2] + iz
+        grid[idx[i]] += w[i]
+    best = 0
+    for k in range(1, grid.shape[0]):
+        if grid[k] > grid[best]:
+            best = k
+    centre = np.zeros(3)
+    sw = 0.0
+    for i in range(n):
+        if idx[i] == best:
+            sw += w[i]
+            for a in range(3):
+                centre[a] += w[i] * X[i, a]
+    if sw > 0.0:
+        centre /= sw
+    else:  # every weight is 0: the heaviest cell is the first; its plain mean
+        c = 0
+        for i in range(n):
+            if idx[i] == best:
+                c += 1
+                for a in range(3):
+                    centre[a] += X[i, a]
+        centre /= max(c, 1)
+    r2 = radius * radius
+    inside = np.zeros(n, dtype=np.bool_)
+    mass = 0.0
+    for step in range(MODE_SHIFTS + 1):
+        acc = np.zeros(3)
+        mass = 0.0
+        changed = False
+        for i in range(n):
+            d2 = 0.0
+            for a in range(3):
+                d = X[i, a] - centre[a]
+                d2 += d * d
+            now = d2 < r2
+            if now != inside[i]:
+                changed = True
+                inside[i] = now
+            if now:
+                mass += w[i]
+                for a in range(3):
+                    acc[a] += w[i] * X[i, a]
+        if step == MODE_SHIFTS or mass <= 0.0:
+            break
+        if step > 0 and not changed:  # the same particles as the last pass: centre is their mean already
+            break
+        centre = acc / mass
+    return centre, mass, inside
+
+
+@njit(cache=True)
+def kernel_masked_moments(X, w, inside, mass):
+    """Mean (6,) and covariance (6, 6) of the particles ``X`` (n, 6) where ``inside``, with weights
+    ``w / mass`` (``mass``: their weights' sum); :func:`kernel_weighted_moments` of that subset
+    without copying it."""
+    n = X.shape[0]
+    mean = np.zeros(6)
+    for i in range(n):
+        if inside[i]:
+            for a in range(6):
+                mean[a] += w[i] * X[i, a]
+    mean /= mass
+    acc = np.zeros(36)
+    diff = np.empty(6)
+    for i in range(n):
+        if not inside[i]:
+            continue
+        wi = w[i] / mass
+        for a in range(6):
+            diff[a] = X[i, a] - mean[a]
+        for a in range(6):
+            wa = wi * diff[a]
+            for b in range(6):
+                acc[a * 6 + b] += wa * diff[b]
+    cov = acc.reshape((6, 6))
+    return mean, 0.5 * (cov + cov.T)

@@ -135,6 +135,7 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("aim + scans shared + hidden-target mode", {"antenna.pointing": "aim", "fusion.share": "scans",
                                                   "filter.visibility": {"hide": 0.05, "reappear": 0.25}}),
     ("aim + cue with the target's velocity", {"antenna.pointing": "aim", "filter.cue.velocity": "target"}),
+    ("aim + estimate at the mode", {"antenna.pointing": "aim", "filter.mode": {"radius": 5.0, "mass": 0.2}}),
     ("preset pursuit", preset_settings("pursuit")),
 )
 

@@ -95,6 +95,7 @@ def filter_params(s: Scenario) -> FilterParams:
         high=np.asarray(s.area.high, dtype=float), noise_std=np.asarray(s.sensor.noise_std, dtype=float),
         clutter_rate=float(s.sensor.clutter_rate),
         visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
+        mode=None if f.mode is None else (float(f.mode.radius), float(f.mode.mass)),
     )
 
 
@@ -221,6 +222,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     the scenario, the value the swarm engine runs with); a scenario that sets another is refused."""
     return [
         ("fusion.existence", s.fusion.existence, "mean"),
+        ("filter.mode", s.filter.mode, None),
         ("control.plan_over", s.control.plan_over, "point"),
         ("fusion.search_reseed", s.fusion.search_reseed, "always"),
         ("comms.loss", s.comms.loss, 0.0),
