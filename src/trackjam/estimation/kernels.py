@@ -127,6 +127,17 @@ def kernel_logsumexp(a):
     return mx + math.log(acc)
 
 
+@njit(cache=True, inline="always")
+def _add_outer(X, i, wi, mean, diff, acc):
+    """acc (36,) += wi (X[i] - mean)(X[i] - mean)^T, flattened; ``diff`` (6,) is scratch."""
+    for a in range(6):
+        diff[a] = X[i, a] - mean[a]
+    for a in range(6):
+        wa = wi * diff[a]
+        for b in range(6):
+            acc[a * 6 + b] += wa * diff[b]
+
+
 @njit(cache=True)
 def kernel_weighted_moments(X, w):
     """Mean (6,) and covariance (6, 6) of particles ``X`` (n, 6) with normalised weights ``w``."""
@@ -138,13 +149,7 @@ def kernel_weighted_moments(X, w):
     acc = np.zeros(36)
     diff = np.empty(6)
     for i in range(n):
-        wi = w[i]
-        for a in range(6):
-            diff[a] = X[i, a] - mean[a]
-        for a in range(6):
-            wa = wi * diff[a]
-            for b in range(6):
-                acc[a * 6 + b] += wa * diff[b]
+        _add_outer(X, i, w[i], mean, diff, acc)
     cov = acc.reshape((6, 6))
     return mean, 0.5 * (cov + cov.T)
 
@@ -419,14 +424,7 @@ def kernel_masked_moments(X, w, inside, mass):
     acc = np.zeros(36)
     diff = np.empty(6)
     for i in range(n):
-        if not inside[i]:
-            continue
-        wi = w[i] / mass
-        for a in range(6):
-            diff[a] = X[i, a] - mean[a]
-        for a in range(6):
-            wa = wi * diff[a]
-            for b in range(6):
-                acc[a * 6 + b] += wa * diff[b]
+        if inside[i]:
+            _add_outer(X, i, w[i] / mass, mean, diff, acc)
     cov = acc.reshape((6, 6))
     return mean, 0.5 * (cov + cov.T)
