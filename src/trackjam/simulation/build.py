@@ -268,6 +268,7 @@ def build_swarm(s: Scenario) -> SwarmComponents:
     is_scenario(s)
     for key, value, runs in _swarm_unsupported(s):
         if value != runs:
+            value = value.model_dump() if hasattr(value, "model_dump") else value
             raise ConfigError(
                 f"{key}: {value!r} is not simulated with several targets yet; the swarm engine runs with {runs!r}"
             )
