@@ -28,10 +28,13 @@ from trackjam.control.assignment_problem import (
     to_assignment_solution,
 )
 from trackjam.control.grasp import (
+    GRASP_CHUNK_SAMPLES,
+    GraspState,
     grasp_reference_loop,
     kernel_local_neighbourhood,
     local_neighbourhood_reference,
     neighbour_lists,
+    run_in_chunks,
     search_every_agent,
 )
 
@@ -61,10 +64,15 @@ def _value(pz, gain, levels_w, delta, n, kind, constrained, C, pair, target, kk,
 
 
 @njit(cache=True, nogil=True)
-def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh,
-                            n_neigh, samples, iterations, best_pair, best_target):
-    """Agent ``me``'s search; writes its best choice into ``best_pair`` (c * L + l) and
-    ``best_target`` (both (N,), on entry the starting incumbent) and returns its value."""
+def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh, n_neigh,
+                             samples, iterations, best_pair, best_target, start_p, start_t, it_p, it_t,
+                             fstate, istate, budget):
+    """Agent ``me``'s search, resumable as :func:`~trackjam.control.grasp.kernel_grasp_resume`:
+    it draws at most ``budget`` more joint samples and returns True when the search has ended.
+    State: the best choice so far in ``best_pair`` (c * L + l) and ``best_target`` ((N,), on the
+    first call the starting incumbent, also in ``start_p``/``start_t``), the iteration's best
+    sample in ``it_p``/``it_t``, ``fstate`` = [start value, best value, the iteration's best]
+    and ``istate`` = [iteration, sample] (0 on the first call)."""
     N = n_cand.shape[0]
     K = pz.shape[0]
     L = levels_w.shape[0]
@@ -74,17 +82,25 @@ def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constra
     q = np.empty(n + 1)
     pr = np.empty(N, dtype=np.int64)
     tg = np.empty(N, dtype=np.int64)
-    it_p = np.empty(N, dtype=np.int64)
-    it_t = np.empty(N, dtype=np.int64)
     blk = n_cand * L
     M = blk * K
-    start_p = best_pair.copy()
-    start_t = best_target.copy()
-    best = _value(pz, gain, levels_w, delta, n, kind, constrained, C, best_pair, best_target, kk, p, q)
-    start = best
-    for _ in range(iterations):
-        it_best = -np.inf
-        for _s in range(samples):
+    start = fstate[0]
+    best = fstate[1]
+    it_best = fstate[2]
+    it = istate[0]
+    first = istate[1]
+    used = 0
+    while it < iterations:
+        if first == 0:
+            it_best = -np.inf
+        for s_ in range(first, samples):
+            if used >= budget:
+                fstate[1] = best
+                fstate[2] = it_best
+                istate[0] = it
+                istate[1] = s_
+                return False
+            used += 1
             for i in range(N):
                 pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
                 tg[i] = 0
@@ -96,6 +112,7 @@ def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constra
                 it_best = xi
                 it_p[:] = pr
                 it_t[:] = tg
+        first = 0
         if it_best == -np.inf:
             it_best = start
             it_p[:] = start_p
@@ -122,7 +139,51 @@ def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constra
             best_target[:] = it_t
             best_pair[me] = ls_p
             best_target[me] = ls_t
-    return best
+        it += 1
+    fstate[1] = best
+    istate[0] = it
+    istate[1] = 0
+    return True
+
+
+def _start_value(pz, gain, levels_w, delta, n, kind, constrained, best_pair, best_target) -> float:
+    N = best_pair.shape[0]
+    C = gain.shape[2] // pz.shape[0]
+    return float(_value(pz, gain, levels_w, delta, n, kind, constrained, C, best_pair, best_target,
+                        np.empty(N, dtype=np.int64), np.empty(N), np.empty(n + 1)))
+
+
+@njit(cache=True, nogil=True)
+def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh,
+                            n_neigh, samples, iterations, best_pair, best_target):
+    """Agent ``me``'s whole search in one call; writes its best choice into ``best_pair``
+    (c * L + l) and ``best_target`` (both (N,), on entry the starting incumbent) and returns its
+    value: :func:`kernel_assignment_resume` run to its end."""
+    N = n_cand.shape[0]
+    C = gain.shape[2] // pz.shape[0]
+    start = _value(pz, gain, levels_w, delta, n, kind, constrained, C, best_pair, best_target,
+                   np.empty(N, dtype=np.int64), np.empty(N), np.empty(n + 1))
+    fstate = np.array([start, start, -np.inf])
+    istate = np.zeros(2, dtype=np.int64)
+    kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh, n_neigh,
+                             samples, iterations, best_pair, best_target, best_pair.copy(), best_target.copy(),
+                             best_pair.copy(), best_target.copy(), fstate, istate, 9223372036854775807)
+    return fstate[1]
+
+
+def assignment_grasp_chunked(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh, n_neigh,
+                             samples, iterations, best_pair, best_target, stop=None,
+                             chunk: int = GRASP_CHUNK_SAMPLES) -> float:
+    """:func:`kernel_assignment_grasp` in chunks of ``chunk`` joint samples (the same draws and
+    result), answering Ctrl-C between them; stops early, keeping the best so far, when ``stop``
+    is set. Returns its value."""
+    st = GraspState(_start_value(pz, gain, levels_w, delta, n, kind, constrained, best_pair, best_target),
+                    best_pair, best_target)
+    run_in_chunks(lambda k: kernel_assignment_resume(
+        rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh, n_neigh, int(samples),
+        int(iterations), st.best_cand, st.best_level, st.start_cand, st.start_level, st.it_c, st.it_l,
+        st.fstate, st.istate, int(k)), stop, chunk)
+    return st.value
 
 
 def assignment_grasp_reference(rng, me, problem: AssignmentProblem, neigh, n_neigh, samples, iterations):
@@ -155,11 +216,11 @@ def solve_assignment_grasp(problem: AssignmentProblem, rngs: list[np.random.Gene
     pairs = np.zeros((N, N), dtype=np.int64)
     targets = np.zeros((N, N), dtype=np.int64)
 
-    def search(j: int) -> None:
-        values[j] = kernel_assignment_grasp(
+    def search(j: int, stop) -> None:
+        values[j] = assignment_grasp_chunked(
             rngs[j], j, problem.pz, problem.gain, problem.levels_w, problem.delta_w, problem.at_least,
             problem.kind, problem.constraints, problem.n_cand, neigh, n_neigh, int(samples), int(iterations),
-            pairs[j], targets[j],
+            pairs[j], targets[j], stop,
         )
 
     search_every_agent(search, rngs, N, threads)

@@ -10,13 +10,13 @@ ties to the lowest sender; a plan without a value (the hover fall-back) ranks be
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+import threading
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-from trackjam.control.grasp import kernel_grasp_search, neighbour_lists
+from trackjam.control.grasp import grasp_search_chunked, neighbour_lists, run_searches
 from trackjam.control.objective import to_solution
 from trackjam.control.problem import Problem, Solution
 from trackjam.control.solve import solve
@@ -58,19 +58,14 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     values = np.empty(len(rows))
     p_s, w = problem.objective_tables()
 
-    def search(k: int) -> None:
-        values[k] = kernel_grasp_search(
-            rngs[k], int(rows[k]), p_s, w, problem.gain, problem.levels_w, problem.delta_w,
+    def search(k: int, stop: threading.Event) -> None:
+        values[k] = grasp_search_chunked(
+            rngs[k], int(rows[k]), (p_s, w), problem.gain, problem.levels_w, problem.delta_w,
             problem.at_least, problem.constraints, problem.n_cand, neigh, n_neigh,
-            int(samples), int(iterations), cands[k], levels[k],
+            int(samples), int(iterations), cands[k], levels[k], stop,
         )
 
-    if threads > 1 and len(rows) > 1:
-        with ThreadPoolExecutor(max_workers=min(threads, len(rows))) as pool:
-            list(pool.map(search, range(len(rows))))
-    else:
-        for k in range(len(rows)):
-            search(k)
+    run_searches(search, len(rows), threads)
     return [(to_solution(problem, cands[k], levels[k]), float(values[k])) for k in range(len(rows))]
 
 

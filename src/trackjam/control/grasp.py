@@ -27,6 +27,7 @@ more: a = floor(U1 m), b = floor(U2 (m - 1)), b += 1 if b >= a, for the m neighb
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Sequence
 
@@ -151,10 +152,17 @@ def _sample_xi(p_flat, kk, n, p, q):
 
 
 @njit(cache=True, nogil=True)
-def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh,
-                        n_neigh, samples, iterations, best_cand, best_level):
-    """Agent ``me``'s GRASP search; writes its best control into ``best_cand``/``best_level``
-    (both (N,), on entry the starting incumbent) and returns its value (-inf: none feasible).
+def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh,
+                        samples, iterations, best_cand, best_level, start_cand, start_level, it_c, it_l,
+                        fstate, istate, budget):
+    """Agent ``me``'s GRASP search, resumable: it runs until ``budget`` more joint samples are
+    drawn (the local searches are not counted) or the search ends, and returns True when it has
+    ended. Its state between calls: the best control so far in ``best_cand``/``best_level``
+    ((N,), on the first call the starting incumbent, also in ``start_cand``/``start_level``),
+    the current iteration's best sample in ``it_c``/``it_l``, ``fstate`` = [value of the start,
+    best value, value of the iteration's best sample] and ``istate`` = [iteration, sample]
+    (both 0 on the first call). Calls of any budgets draw the same stream and give the same
+    result as one call: the Python side checks Ctrl-C and a stop flag between calls.
     ``p_s`` (S, N, C, L) and ``w`` (S,) are :meth:`Problem.objective_tables`."""
     N = n_cand.shape[0]
     S = w.shape[0]
@@ -163,21 +171,29 @@ def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
     q = np.empty(n + 1)
     c = np.empty(N, dtype=np.int64)
     lv = np.empty(N, dtype=np.int64)
-    it_c = np.empty(N, dtype=np.int64)
-    it_l = np.empty(N, dtype=np.int64)
     kk = np.empty(N, dtype=np.int64)
     M = n_cand * L
     p_flat = p_s.reshape(S, N, -1)  # pair k = c * L + l
     pair_c = np.arange(p_flat.shape[2]) // L
     pair_l = np.arange(p_flat.shape[2]) % L
-    start_c = best_cand.copy()
-    start_l = best_level.copy()
-    best = _value(p_s, w, gain, levels_w, delta, n, constrained, best_cand, best_level, p, q)
-    start = best
-    for _ in range(iterations):
+    start = fstate[0]
+    best = fstate[1]
+    it_best = fstate[2]
+    it = istate[0]
+    first = istate[1]
+    used = 0
+    while it < iterations:
         # 1. greedy randomised solution: best feasible of n_s uniform joint samples
-        it_best = -np.inf
-        for _s in range(samples):
+        if first == 0:
+            it_best = -np.inf
+        for s_ in range(first, samples):
+            if used >= budget:
+                fstate[1] = best
+                fstate[2] = it_best
+                istate[0] = it
+                istate[1] = s_
+                return False
+            used += 1
             for i in range(N):
                 kk[i] = min(int(rng.random() * M[i]), M[i] - 1)
             if S == 1:  # w = [1]
@@ -195,10 +211,11 @@ def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
                     for i in range(N):
                         it_c[i] = c[i]
                         it_l[i] = lv[i]
+        first = 0
         if it_best == -np.inf:
             it_best = start
-            it_c[:] = start_c
-            it_l[:] = start_l
+            it_c[:] = start_cand
+            it_l[:] = start_level
         # 2. local search over my own {u-, u, u+} x {l-, l, l+}
         u = it_c[me]
         l0 = it_l[me]
@@ -221,7 +238,77 @@ def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
             best_level[:] = it_l
             best_cand[me] = ls_u
             best_level[me] = ls_l
-    return best
+        it += 1
+    fstate[1] = best
+    istate[0] = it
+    istate[1] = 0
+    return True
+
+
+class GraspState:
+    """One agent's resumable GRASP search (:func:`kernel_grasp_resume`) from the incumbent in
+    ``best_cand``/``best_level`` (written in place as the search improves it)."""
+
+    def __init__(self, start_value: float, best_cand: np.ndarray, best_level: np.ndarray) -> None:
+        self.best_cand, self.best_level = best_cand, best_level
+        self.start_cand, self.start_level = best_cand.copy(), best_level.copy()
+        self.it_c, self.it_l = best_cand.copy(), best_level.copy()
+        self.fstate = np.array([start_value, start_value, -np.inf])
+        self.istate = np.zeros(2, dtype=np.int64)
+
+    @property
+    def value(self) -> float:
+        return float(self.fstate[1])
+
+
+#: joint samples a compiled GRASP call draws before it returns to Python, which then answers
+#: Ctrl-C and a stop flag (about 0.1 s for N = 3; the default search, 10^4 x 100, is one call)
+GRASP_CHUNK_SAMPLES = 1_000_000
+
+
+def run_in_chunks(step: Callable[[int], bool], stop: threading.Event | None = None,
+                  chunk: int = GRASP_CHUNK_SAMPLES) -> bool:
+    """Call ``step(chunk)`` until it returns True (the search ended) or ``stop`` is set; True
+    when it ended. Between calls Python runs, so Ctrl-C is answered within one chunk."""
+    while not step(chunk):
+        if stop is not None and stop.is_set():
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh,
+                        n_neigh, samples, iterations, best_cand, best_level):
+    """Agent ``me``'s whole GRASP search in one call; writes its best control into
+    ``best_cand``/``best_level`` (both (N,), on entry the starting incumbent) and returns its
+    value (-inf: none feasible). :func:`kernel_grasp_resume` run to its end."""
+    N = n_cand.shape[0]
+    p = np.empty(N)
+    q = np.empty(n + 1)
+    start = _value(p_s, w, gain, levels_w, delta, n, constrained, best_cand, best_level, p, q)
+    fstate = np.array([start, start, -np.inf])
+    istate = np.zeros(2, dtype=np.int64)
+    kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh,
+                        samples, iterations, best_cand, best_level, best_cand.copy(), best_level.copy(),
+                        best_cand.copy(), best_level.copy(), fstate, istate, 9223372036854775807)
+    return fstate[1]
+
+
+def grasp_search_chunked(rng, me, problem_tables, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh,
+                         samples, iterations, best_cand, best_level, stop: threading.Event | None = None,
+                         chunk: int = GRASP_CHUNK_SAMPLES) -> float:
+    """:func:`kernel_grasp_search` in chunks of ``chunk`` joint samples (the same draws and
+    result); stops early, keeping the best so far, when ``stop`` is set. Returns its value."""
+    p_s, w = problem_tables
+    N = n_cand.shape[0]
+    start = _value(p_s, w, gain, levels_w, delta, n, constrained, best_cand, best_level, np.empty(N),
+                   np.empty(n + 1))
+    st = GraspState(start, best_cand, best_level)
+    run_in_chunks(lambda k: kernel_grasp_resume(
+        rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh, int(samples),
+        int(iterations), st.best_cand, st.best_level, st.start_cand, st.start_level, st.it_c, st.it_l,
+        st.fstate, st.istate, int(k)), stop, chunk)
+    return st.value
 
 
 def grasp_reference_loop(rng, me, samples, iterations, n_choices, start, values, neighbourhood):
@@ -278,18 +365,33 @@ def grasp_search_reference(rng, me, problem: Problem, neigh, n_neigh, samples, i
     return best, k // L, k % L
 
 
-def search_every_agent(search: Callable[[int], None], rngs: Sequence[np.random.Generator], n_agents: int,
-                       threads: int) -> None:
-    """Run every agent's ``search(j)`` (agent j draws from ``rngs[j]``); ``threads > 1`` runs them
-    side by side (they are independent, as on the real team, so the result does not depend on it)."""
+def search_every_agent(search: Callable[[int, threading.Event], None], rngs: Sequence[np.random.Generator],
+                       n_agents: int, threads: int) -> None:
+    """Run every agent's ``search(j, stop)`` (agent j draws from ``rngs[j]``); ``threads > 1`` runs
+    them side by side (they are independent, as on the real team, so the result does not depend
+    on it). On Ctrl-C (or any error) ``stop`` is set, so that searches running in other threads
+    end at their next chunk instead of running on."""
     if len(rngs) < n_agents:
         raise ValueError(f"grasp needs one random generator per agent ({n_agents}), got {len(rngs)}")
-    if threads > 1 and n_agents > 1:
-        with ThreadPoolExecutor(max_workers=min(threads, n_agents)) as pool:
-            list(pool.map(search, range(n_agents)))
+    run_searches(search, n_agents, threads)
+
+
+def run_searches(search: Callable[[int, threading.Event], None], n: int, threads: int) -> None:
+    """``search(k, stop)`` for k in 0..n-1, in up to ``threads`` threads; ``stop`` is set when the
+    caller is interrupted (Ctrl-C) or one search fails, before waiting for the others."""
+    stop = threading.Event()
+    if threads > 1 and n > 1:
+        with ThreadPoolExecutor(max_workers=min(threads, n)) as pool:
+            futures = [pool.submit(search, k, stop) for k in range(n)]
+            try:
+                for f in futures:
+                    f.result()
+            except BaseException:
+                stop.set()
+                raise
     else:
-        for j in range(n_agents):
-            search(j)
+        for k in range(n):
+            search(k, stop)
 
 
 def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int = 10000,
@@ -306,11 +408,11 @@ def solve_grasp(problem: Problem, rngs: list[np.random.Generator], samples: int 
     cands = np.zeros((N, N), dtype=np.int64)
     levels = np.zeros((N, N), dtype=np.int64)
 
-    def search(j: int) -> None:
-        values[j] = kernel_grasp_search(
-            rngs[j], j, p_s, w, problem.gain, problem.levels_w, problem.delta_w,
+    def search(j: int, stop: threading.Event) -> None:
+        values[j] = grasp_search_chunked(
+            rngs[j], j, (p_s, w), problem.gain, problem.levels_w, problem.delta_w,
             problem.at_least, problem.constraints, problem.n_cand, neigh, n_neigh,
-            int(samples), int(iterations), cands[j], levels[j],
+            int(samples), int(iterations), cands[j], levels[j], stop,
         )
 
     search_every_agent(search, rngs, N, threads)
