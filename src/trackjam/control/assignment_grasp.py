@@ -90,17 +90,14 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
     it = istate[0]
     first = istate[1]
     used = 0
+    state_p, state_t = it_p, it_t
+    it_p = state_p.copy()  # local copies in the loops (the caller's arrays could alias others)
+    it_t = state_t.copy()
     while it < iterations:
         if first == 0:
             it_best = -np.inf
-        for s_ in range(first, samples):
-            if used >= budget:
-                fstate[1] = best
-                fstate[2] = it_best
-                istate[0] = it
-                istate[1] = s_
-                return False
-            used += 1
+        end = samples if budget - used >= samples - first else first + (budget - used)
+        for _s in range(first, end):
             for i in range(N):
                 pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
                 tg[i] = 0
@@ -112,6 +109,15 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
                 it_best = xi
                 it_p[:] = pr
                 it_t[:] = tg
+        used += end - first
+        if end < samples:  # the budget ran out inside this iteration's sampling: pause here
+            fstate[1] = best
+            fstate[2] = it_best
+            istate[0] = it
+            istate[1] = end
+            state_p[:] = it_p
+            state_t[:] = it_t
+            return False
         first = 0
         if it_best == -np.inf:
             it_best = start

@@ -182,18 +182,15 @@ def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
     it = istate[0]
     first = istate[1]
     used = 0
+    state_c, state_l = it_c, it_l
+    it_c = state_c.copy()  # local copies in the loops (the caller's arrays could alias others)
+    it_l = state_l.copy()
     while it < iterations:
         # 1. greedy randomised solution: best feasible of n_s uniform joint samples
         if first == 0:
             it_best = -np.inf
-        for s_ in range(first, samples):
-            if used >= budget:
-                fstate[1] = best
-                fstate[2] = it_best
-                istate[0] = it
-                istate[1] = s_
-                return False
-            used += 1
+        end = samples if budget - used >= samples - first else first + (budget - used)
+        for _s in range(first, end):
             for i in range(N):
                 kk[i] = min(int(rng.random() * M[i]), M[i] - 1)
             if S == 1:  # w = [1]
@@ -211,6 +208,15 @@ def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
                     for i in range(N):
                         it_c[i] = c[i]
                         it_l[i] = lv[i]
+        used += end - first
+        if end < samples:  # the budget ran out inside this iteration's sampling: pause here
+            fstate[1] = best
+            fstate[2] = it_best
+            istate[0] = it
+            istate[1] = end
+            state_c[:] = it_c
+            state_l[:] = it_l
+            return False
         first = 0
         if it_best == -np.inf:
             it_best = start
