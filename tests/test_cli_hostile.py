@@ -8,6 +8,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
+
+from trackjam.cli import app
 
 
 def _trackjam(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
@@ -102,3 +105,30 @@ def test_a_failure_after_the_last_step_warns_in_one_line_and_validate_says_ok():
     assert r.returncode == 0 and r.stdout.startswith("ok"), r.stderr
     assert r.stderr.splitlines() == [
         "trackjam: warning: comms.failures[1]: start after the last step (30); the agent never fails"]
+
+
+def _numba_interrupt(*args, **kwargs):
+    """What a SIGINT looks like when its handler runs inside a callback of compiled numba code."""
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as err:
+        raise SystemError("CPUDispatcher(<function kernel>) returned a result with an exception set") from err
+
+
+def test_a_ctrl_c_that_numba_turned_into_a_system_error_is_an_interrupt(monkeypatch, tmp_path):
+    import trackjam.simulation.loop as loop
+
+    monkeypatch.setattr(loop, "simulate", _numba_interrupt)
+    out = tmp_path / "r"
+    r = CliRunner().invoke(app, ["run", "paper-fig3", "--set", "steps=2", "--out", str(out)])
+    assert r.exit_code == 130 and "trackjam: interrupted" in r.output and "Traceback" not in r.output
+    assert not out.exists()
+
+
+def test_only_a_system_error_caused_by_ctrl_c_counts_as_an_interrupt():
+    from trackjam.cli import interrupted
+
+    with pytest.raises(SystemError) as info:
+        _numba_interrupt()
+    assert interrupted(info.value) and interrupted(KeyboardInterrupt())
+    assert not interrupted(SystemError("a real bug")) and not interrupted(ValueError())

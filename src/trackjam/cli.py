@@ -34,6 +34,11 @@ class _Cli(typer.Typer):
         except (typer.Abort, KeyboardInterrupt):
             typer.echo("trackjam: interrupted", err=True)
             sys.exit(130)
+        except SystemError as err:
+            if not interrupted(err):
+                raise
+            typer.echo("trackjam: interrupted", err=True)
+            sys.exit(130)
         sys.exit(rv if isinstance(rv, int) else 0)
 
 
@@ -90,8 +95,27 @@ def user_errors(fn: Callable) -> Callable:
         except KeyboardInterrupt:
             typer.echo("trackjam: interrupted", err=True)
             raise typer.Exit(130)
+        except SystemError as err:
+            if not interrupted(err):
+                raise
+            typer.echo("trackjam: interrupted", err=True)
+            raise typer.Exit(130)
 
     return wrapper
+
+
+def interrupted(err: BaseException) -> bool:
+    """``err`` stands for a Ctrl-C: a KeyboardInterrupt, or an error it caused. A SIGINT whose
+    Python handler runs inside a callback of compiled numba code (numba unpickling a constant)
+    surfaces as SystemError("... returned a result with an exception set"), chained from the
+    KeyboardInterrupt."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return True
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return False
 
 
 def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
