@@ -438,9 +438,8 @@ class BernoulliFilter:
         log_post = log_w if log_A == -np.inf else log_joint - log_A
         w = np.exp(log_post)
         w /= w.sum()
-        mean, cov = weighted_moments(X, w)
-        if self.mode is not None:
-            mean, cov = mode_moments(X, w, *self.mode) or (mean, cov)
+        at_mode = None if self.mode is None else mode_moments(X, w, *self.mode)
+        mean, cov = at_mode or weighted_moments(X, w)
         # the uniform-born part becomes the young component, the rest is resampled to the
         # particles left of n: the step keeps n + n_b particles in all
         k = len(X) - n_u if self.two_scan else len(X)
