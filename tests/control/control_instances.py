@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from trackjam.control.grasp import grasp_search_reference, kernel_grasp_search, neighbour_lists
+from trackjam.control.grasp import grasp_search_chunked, grasp_search_reference, neighbour_lists
 from trackjam.control.problem import build_problem
 from trackjam.world.moves import displacement_set
 
@@ -28,14 +28,14 @@ def random_problem(rng, antenna, n_agents=3, at_least=2, constraints=True, displ
 
 
 def assert_grasp_kernel_follows_its_twin(P, seed: int, samples: int, iterations: int, neighbours: int = 4) -> None:
-    """Every agent's compiled GRASP search equals its numpy twin on ``P``: value, plan and the
+    """Every agent's compiled GRASP search (one chunk) equals its numpy twin on ``P``: value, plan and the
     random stream both consumed."""
     neigh, n_neigh = neighbour_lists(P, neighbours)
     for me in range(P.n_agents):
         c = np.zeros(P.n_agents, dtype=np.int64)
         l = np.zeros(P.n_agents, dtype=np.int64)
         r1, r2 = np.random.default_rng(seed), np.random.default_rng(seed)
-        v = kernel_grasp_search(r1, me, *P.objective_tables(), P.gain, P.levels_w, P.delta_w, P.at_least,
+        v = grasp_search_chunked(r1, me, P.objective_tables(), P.gain, P.levels_w, P.delta_w, P.at_least,
                                 P.constraints, P.n_cand, neigh, n_neigh, samples, iterations, c, l)
         v_ref, c_ref, l_ref = grasp_search_reference(r2, me, P, neigh, n_neigh, samples, iterations, c * 0, l * 0)
         assert v == v_ref and np.array_equal(c, c_ref) and np.array_equal(l, l_ref)

@@ -6,8 +6,8 @@ import pytest
 
 from trackjam.control.assignment_exact import solve_assignment_exact
 from trackjam.control.assignment_grasp import (
+    assignment_grasp_chunked,
     assignment_grasp_reference,
-    kernel_assignment_grasp,
     solve_assignment_grasp,
 )
 from trackjam.control.assignment_problem import assignment_value
@@ -27,7 +27,7 @@ def test_kernel_follows_numpy_reference(antenna, objective, n_targets):
         pair = np.zeros(P.n_agents, dtype=np.int64)
         target = np.zeros(P.n_agents, dtype=np.int64)
         r1, r2 = np.random.default_rng(me), np.random.default_rng(me)
-        v = kernel_assignment_grasp(r1, me, P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind,
+        v = assignment_grasp_chunked(r1, me, P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind,
                                     P.constraints, P.n_cand, neigh, n_neigh, 50, 5, pair, target)
         v_ref, p_ref, t_ref = assignment_grasp_reference(r2, me, P, neigh, n_neigh, 50, 5)
         assert v == v_ref and np.array_equal(pair, p_ref) and np.array_equal(target, t_ref)

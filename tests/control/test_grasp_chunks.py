@@ -11,7 +11,6 @@ import pytest
 from trackjam.control.grasp import (
     GRASP_CHUNK_SAMPLES,
     grasp_search_chunked,
-    kernel_grasp_search,
     neighbour_lists,
     run_in_chunks,
     run_searches,
@@ -20,6 +19,8 @@ from trackjam.control.problem import build_problem
 
 from control_instances import random_problem
 
+ONE_CALL = 2**62  # a chunk no search reaches: the whole search in one compiled call
+
 
 def _both(P, me, seed, samples, iterations, chunk, stop=None):
     neigh, n_neigh = neighbour_lists(P, 4)
@@ -27,7 +28,7 @@ def _both(P, me, seed, samples, iterations, chunk, stop=None):
     c1, l1 = np.zeros(P.n_agents, dtype=np.int64), np.zeros(P.n_agents, dtype=np.int64)
     c2, l2 = c1.copy(), l1.copy()
     r1, r2 = np.random.default_rng(seed), np.random.default_rng(seed)
-    v1 = kernel_grasp_search(r1, me, *P.objective_tables(), *args, c1, l1)
+    v1 = grasp_search_chunked(r1, me, P.objective_tables(), *args, c1, l1, None, ONE_CALL)
     v2 = grasp_search_chunked(r2, me, P.objective_tables(), *args, c2, l2, stop, chunk)
     return (v1, c1, l1, r1), (v2, c2, l2, r2)
 
@@ -104,7 +105,7 @@ def test_an_interrupted_search_stops_the_others(threads):
 @pytest.mark.parametrize("chunk", [1, 13, 10**9])
 @pytest.mark.parametrize("objective", ["sum", "min"])
 def test_the_assignment_search_in_chunks_is_the_one_call_search(antenna, chunk, objective):
-    from trackjam.control.assignment_grasp import assignment_grasp_chunked, kernel_assignment_grasp
+    from trackjam.control.assignment_grasp import assignment_grasp_chunked
     from control_instances import small_displacements
     from test_assignment import random_assignment
 
@@ -118,7 +119,7 @@ def test_the_assignment_search_in_chunks_is_the_one_call_search(antenna, chunk, 
             p1, t1 = np.zeros(P.n_agents, dtype=np.int64), np.zeros(P.n_agents, dtype=np.int64)
             p2, t2 = p1.copy(), t1.copy()
             r1, r2 = np.random.default_rng(me), np.random.default_rng(me)
-            v1 = kernel_assignment_grasp(r1, me, *args, p1, t1)
+            v1 = assignment_grasp_chunked(r1, me, *args, p1, t1, None, ONE_CALL)
             v2 = assignment_grasp_chunked(r2, me, *args, p2, t2, None, chunk)
             assert v1 == v2 and np.array_equal(p1, p2) and np.array_equal(t1, t2)
             assert r1.random() == r2.random()

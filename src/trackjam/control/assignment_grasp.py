@@ -159,30 +159,14 @@ def _start_value(pz, gain, levels_w, delta, n, kind, constrained, best_pair, bes
                         np.empty(N, dtype=np.int64), np.empty(N), np.empty(n + 1)))
 
 
-@njit(cache=True, nogil=True)
-def kernel_assignment_grasp(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh,
-                            n_neigh, samples, iterations, best_pair, best_target):
-    """Agent ``me``'s whole search in one call; writes its best choice into ``best_pair``
-    (c * L + l) and ``best_target`` (both (N,), on entry the starting incumbent) and returns its
-    value: :func:`kernel_assignment_resume` run to its end."""
-    N = n_cand.shape[0]
-    C = gain.shape[2] // pz.shape[0]
-    start = _value(pz, gain, levels_w, delta, n, kind, constrained, C, best_pair, best_target,
-                   np.empty(N, dtype=np.int64), np.empty(N), np.empty(n + 1))
-    fstate = np.array([start, start, -np.inf])
-    istate = np.zeros(2, dtype=np.int64)
-    kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh, n_neigh,
-                             samples, iterations, best_pair, best_target, best_pair.copy(), best_target.copy(),
-                             best_pair.copy(), best_target.copy(), fstate, istate, 9223372036854775807)
-    return fstate[1]
-
-
 def assignment_grasp_chunked(rng, me, pz, gain, levels_w, delta, n, kind, constrained, n_cand, neigh, n_neigh,
                              samples, iterations, best_pair, best_target, stop=None,
                              chunk: int = GRASP_CHUNK_SAMPLES) -> float:
-    """:func:`kernel_assignment_grasp` in chunks of ``chunk`` joint samples (the same draws and
-    result), answering Ctrl-C between them; stops early, keeping the best so far, when ``stop``
-    is set. Returns its value."""
+    """Agent ``me``'s search (:func:`kernel_assignment_resume`) from the incumbent in
+    ``best_pair`` (c * L + l) and ``best_target`` ((N,), written in place as the search improves
+    it), in chunks of ``chunk`` joint samples, answering Ctrl-C between them: any chunk size
+    draws the same stream and finds the same plan. Stops early, keeping the best so far, when
+    ``stop`` is set. Returns its value."""
     st = GraspState(_start_value(pz, gain, levels_w, delta, n, kind, constrained, best_pair, best_target),
                     best_pair, best_target)
     run_in_chunks(lambda k: kernel_assignment_resume(
@@ -193,7 +177,7 @@ def assignment_grasp_chunked(rng, me, pz, gain, levels_w, delta, n, kind, constr
 
 
 def assignment_grasp_reference(rng, me, problem: AssignmentProblem, neigh, n_neigh, samples, iterations):
-    """Plain-numpy twin of :func:`kernel_assignment_grasp` from the starting incumbent (same
+    """Plain-numpy twin of :func:`assignment_grasp_chunked` from the starting incumbent (same
     draws, same ties); returns (value, pairs c * L + l, targets). Agent i's choice x is target
     x // blk_i and pair x mod blk_i (blk_i = n_cand_i L)."""
     N, K, L = problem.n_agents, problem.n_targets, problem.n_levels

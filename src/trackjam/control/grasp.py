@@ -282,29 +282,14 @@ def run_in_chunks(step: Callable[[int], bool], stop: threading.Event | None = No
     return True
 
 
-@njit(cache=True, nogil=True)
-def kernel_grasp_search(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh,
-                        n_neigh, samples, iterations, best_cand, best_level):
-    """Agent ``me``'s whole GRASP search in one call; writes its best control into
-    ``best_cand``/``best_level`` (both (N,), on entry the starting incumbent) and returns its
-    value (-inf: none feasible). :func:`kernel_grasp_resume` run to its end."""
-    N = n_cand.shape[0]
-    p = np.empty(N)
-    q = np.empty(n + 1)
-    start = _value(p_s, w, gain, levels_w, delta, n, constrained, best_cand, best_level, p, q)
-    fstate = np.array([start, start, -np.inf])
-    istate = np.zeros(2, dtype=np.int64)
-    kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh,
-                        samples, iterations, best_cand, best_level, best_cand.copy(), best_level.copy(),
-                        best_cand.copy(), best_level.copy(), fstate, istate, 9223372036854775807)
-    return fstate[1]
-
-
 def grasp_search_chunked(rng, me, problem_tables, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh,
                          samples, iterations, best_cand, best_level, stop: threading.Event | None = None,
                          chunk: int = GRASP_CHUNK_SAMPLES) -> float:
-    """:func:`kernel_grasp_search` in chunks of ``chunk`` joint samples (the same draws and
-    result); stops early, keeping the best so far, when ``stop`` is set. Returns its value."""
+    """Agent ``me``'s GRASP search (:func:`kernel_grasp_resume`) from the incumbent in
+    ``best_cand``/``best_level`` ((N,), written in place as the search improves it), in chunks
+    of ``chunk`` joint samples: any chunk size draws the same stream and finds the same plan.
+    Stops early, keeping the best so far, when ``stop`` is set. Returns its value (-inf: none
+    feasible). ``problem_tables`` is :meth:`Problem.objective_tables`."""
     p_s, w = problem_tables
     N = n_cand.shape[0]
     start = _value(p_s, w, gain, levels_w, delta, n, constrained, best_cand, best_level, np.empty(N),
@@ -348,7 +333,7 @@ def grasp_reference_loop(rng, me, samples, iterations, n_choices, start, values,
 
 def grasp_search_reference(rng, me, problem: Problem, neigh, n_neigh, samples, iterations,
                            start_cand, start_level):
-    """Plain-numpy twin of :func:`kernel_grasp_search` (same draws, same ties); returns (value,
+    """Plain-numpy twin of :func:`grasp_search_chunked` (same draws, same ties); returns (value,
     candidate slots, levels)."""
     N, L, n = problem.n_agents, problem.n_levels, problem.at_least
     idx = np.arange(N)
