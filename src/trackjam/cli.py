@@ -31,11 +31,8 @@ class _Cli(typer.Typer):
         except click_errors.ClickException as err:
             typer.echo(f"trackjam: error: {' '.join(err.format_message().split())}", err=True)
             sys.exit(err.exit_code)
-        except (typer.Abort, KeyboardInterrupt):
-            typer.echo("trackjam: interrupted", err=True)
-            sys.exit(130)
-        except SystemError as err:
-            if not interrupted(err):
+        except (typer.Abort, KeyboardInterrupt, SystemError) as err:
+            if isinstance(err, SystemError) and not interrupted(err):
                 raise
             typer.echo("trackjam: interrupted", err=True)
             sys.exit(130)
@@ -92,11 +89,8 @@ def user_errors(fn: Callable) -> Callable:
             if err.errno in (errno.ENOSPC, errno.EDQUOT):
                 _fail(f"cannot write the output: {err.strerror}")
             raise
-        except KeyboardInterrupt:
-            typer.echo("trackjam: interrupted", err=True)
-            raise typer.Exit(130)
-        except SystemError as err:
-            if not interrupted(err):
+        except (KeyboardInterrupt, SystemError) as err:
+            if not interrupted(err):  # a SystemError that no Ctrl-C caused
                 raise
             typer.echo("trackjam: interrupted", err=True)
             raise typer.Exit(130)
