@@ -81,6 +81,8 @@ def test_overrides_are_dotted_and_validated():
         ("filter.visibility.hide=1.5", "filter.visibility.hide", "less than or equal to 1"),
         ("filter.visibility={hide: 0.1}", "filter.visibility.reappear", "required"),
         ("fusion.report_spread=0", "fusion.report_spread", "greater than 0"),
+        ("control.belief_spread=-2", "control.belief_spread", "greater than 0"),
+        ("control.belief_spread=.nan", "control.belief_spread", "finite"),
         ("filter.mode.radius=-5", "filter.mode.radius", "greater than 0"),
         ("filter.mode={radius: 5, mass: 0}", "filter.mode.mass", "greater than 0"),
         ("filter.mode={mass: 1.5}", "filter.mode.mass", "less than or equal to 1"),

@@ -120,6 +120,7 @@ def test_the_pursuit_preset_is_paper_fig3_with_aim_pointing_and_the_options_that
     assert diff == {("antenna", "pointing"): "aim", ("control", "lead"): 0.5, ("control", "solver"): "exact",
                     ("filter", "visibility"): {"hide": 0.05, "reappear": 0.25}, ("fusion", "share"): "scans",
                     ("fusion", "report_spread"): 8.0, ("filter", "mode"): {"radius": 5.0, "mass": 0.2},
+                    ("control", "plan_over"): "belief", ("control", "belief_spread"): 8.0,
                     ("filter", "cue"): {"existence": 0.9, "position_std": 2.0, "velocity_std": 2.0, "velocity": "target"}}
 
 

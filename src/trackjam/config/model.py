@@ -440,6 +440,12 @@ class Control(_Model):
     belief_samples: Integer(1, 256) = Field(
         16, description="`plan_over: belief`: particles each agent draws from its predicted density and sends, in [1, 256]"
     )
+    belief_spread: Length | None = Field(
+        None,
+        description="`plan_over: belief` only while the belief is wide (ours): an agent averages Xi over the belief "
+        "on a step at which some prediction it heard has a position spread sqrt(trace(C_pos) / 3) above this [m], "
+        f"and evaluates it at x_bar otherwise, in (0, {MAX_LENGTH:g}]; null: over the belief on every step",
+    )
     fallback: Literal["hover", "search"] = Field(
         "hover",
         description="when no agent believes in the target: `hover` (docs/model.md: hover, keep the last aim, highest "

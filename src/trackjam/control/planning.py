@@ -32,6 +32,19 @@ class PlanSettings:
     fallback: str  # "hover" | "search"
     time_limit_s: float | None = 1.0  # exact's budget per search [s]
     belief_samples: int = 0  # control.plan_over: belief -> samples per agent; 0: plan at the point x_bar
+    belief_spread: float | None = None  # control.belief_spread: the belief only while a heard spread exceeds it [m]
+
+
+def position_spread(cov: np.ndarray) -> float:
+    """sqrt(trace(C_pos) / 3) [m]: the root-mean-square position spread per axis of a
+    Gaussian (or particle) belief with covariance ``cov`` (position block first)."""
+    return float(np.sqrt(np.trace(np.asarray(cov)[:3, :3]) / 3.0))
+
+
+def wide_belief(predicted: Sequence, spread: float | None) -> bool:
+    """``control.belief_spread``: plan over the belief this step, because some prediction
+    received has a position spread above ``spread`` [m] (always, for None)."""
+    return spread is None or any(est.cov is not None and position_spread(est.cov) > spread for est in predicted)
 
 
 def planning_aim(predicted: Sequence) -> np.ndarray | None:

@@ -136,6 +136,8 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
                                                   "filter.visibility": {"hide": 0.05, "reappear": 0.25}}),
     ("aim + cue with the target's velocity", {"antenna.pointing": "aim", "filter.cue.velocity": "target"}),
     ("aim + estimate at the mode", {"antenna.pointing": "aim", "filter.mode": {"radius": 5.0, "mass": 0.2}}),
+    ("aim + plan over the belief while it spreads > 8 m", {"antenna.pointing": "aim", "control.plan_over": "belief",
+                                                           "control.belief_spread": 8.0}),
     ("preset pursuit", preset_settings("pursuit")),
 )
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from trackjam.control.planning import position_spread
 from trackjam.estimation.fusion import CONFIRM, FusedEstimate
 from trackjam.metrics.ospa import ospa
 from trackjam.metrics.summary import summarise
@@ -74,7 +75,7 @@ def seen(fused: FusedEstimate) -> float:
 def located(cov: np.ndarray, spread: float | None) -> bool:
     """The fused track is tight enough to report: sqrt(trace(C_pos) / 3) <= ``spread`` (always
     when ``spread`` is None)."""
-    return spread is None or float(np.sqrt(np.trace(cov[:3, :3]) / 3.0)) <= spread
+    return spread is None or position_spread(cov) <= spread
 
 
 class Simulation:

@@ -32,7 +32,7 @@ import numpy as np
 
 from trackjam.control.distributed import Proposal, adopt, own_searches
 from trackjam.control.fallback import fallback_levels
-from trackjam.control.planning import PlanSettings, pooled_belief
+from trackjam.control.planning import PlanSettings, pooled_belief, wide_belief
 from trackjam.control.pursuit import AimSettings, pursuit_aim, search_aim
 from trackjam.control.problem import build_problem
 from trackjam.estimation.bernoulli import Estimate, Scan
@@ -211,7 +211,7 @@ class Team:
             aim = np.frombuffer(key[2])
             positions = np.array([m.position for m in heard] + [self.known[j0][k].position for k in guards])
             samples = weights = None
-            if plan.belief_samples:
+            if plan.belief_samples and wide_belief([m.estimate for m in heard], plan.belief_spread):
                 # tracking: the believers' predicted densities; searching: wherever the team's can be
                 sampled = [m.belief for m in heard if searching or m.estimate.existence > CONFIRM]
                 samples, weights = pooled_belief(sampled)
