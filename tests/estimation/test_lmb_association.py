@@ -99,15 +99,19 @@ def test_ranked_gives_the_k_best_in_order(log_eta, k):
 @settings(max_examples=30, deadline=None)
 @given(log_eta_strategy(2, 3), st.integers(0, 2**32 - 1))
 def test_gibbs_marginals_equal_enumeration(log_eta, seed):
-    """The distinct hypotheses visited, each with its exact weight: 1000 sweeps visit every
-    hypothesis of weight 1 % or more, and the marginals then differ from the enumeration's by
-    at most twice the weight of the hypotheses never visited."""
+    """The distinct hypotheses visited, each with its exact weight: the best one is always among
+    them, and the marginals differ from the enumeration's by at most twice the weight of the
+    hypotheses never visited (a bound that holds whatever was visited: at most that weight).
+    That 1000 sweeps visit every hypothesis of 1 % or more is not true in general: with
+    log_eta = [[-1, 1, 0], [-3, 4, -1]] the hypothesis (1, 2) holds 1.3 % of the weight but is
+    reached from the two that hold 98 % only through a step of probability 0.7 %, and about one
+    seed in nine never visits it (34 of the seeds 0-299, 109 among them)."""
     visited = gibbs_hypotheses(log_eta, 1000, np.random.default_rng(seed))
     every = all_hypotheses(log_eta.shape[0], log_eta.shape[1] - 1)
     p = np.exp(hypothesis_log_weights(log_eta, every))
     p /= p.sum()
     seen = np.array([any(np.array_equal(g, v) for v in visited) for g in every])
-    assert np.all(seen[p >= 0.01])
+    assert np.any(seen[p >= p.max() * (1 - 1e-9)])
     beta = association_marginals(log_eta, "gibbs", np.random.default_rng(seed), samples=1000)
     assert np.abs(beta - brute_force_marginals(log_eta)).max() <= 2 * p[~seen].sum() + 1e-12
 
