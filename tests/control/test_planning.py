@@ -103,3 +103,12 @@ def test_the_team_plans_over_the_belief_exactly_on_the_steps_whose_predictions_s
     assert len(calls) == len(spreads) == 12  # every agent holds the same problem: one search per step
     assert calls == [s > bound for s in spreads]
     assert any(calls) and not all(calls)
+
+
+def test_a_belief_spread_without_planning_over_the_belief_warns_under_its_key():
+    from trackjam.config.warnings import scenario_warnings
+
+    lines = scenario_warnings(load_scenario("paper-fig3", ["control.belief_spread=8"]))
+    assert lines == ["control.belief_spread: 8 m has no effect under control.plan_over: point "
+                     "(it bounds plan_over: belief)"]
+    assert scenario_warnings(load_scenario("pursuit")) == []

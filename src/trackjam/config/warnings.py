@@ -27,6 +27,10 @@ def scenario_warnings(s: Scenario) -> list[str]:
     late = [f"comms.failures[{k}]" for k, f in enumerate(s.comms.failures) if f.step > s.steps]
     if late:
         out.append(f"{', '.join(late)}: start after the last step ({s.steps}); the agent never fails")
+    c = s.control
+    if c.belief_spread is not None and c.plan_over != "belief":
+        out.append(f"control.belief_spread: {c.belief_spread:g} m has no effect under control.plan_over: {c.plan_over} "
+                   "(it bounds plan_over: belief)")
     at: dict[tuple, list[int]] = {}
     for j, u in enumerate(s.agents.initial):
         at.setdefault(tuple(u), []).append(j)
