@@ -30,6 +30,9 @@ from trackjam.control.assignment_problem import (
 from trackjam.control.grasp import (
     GRASP_CHUNK_SAMPLES,
     GraspState,
+    _chunk_end,
+    _pause,
+    _resumed,
     grasp_reference_loop,
     kernel_local_neighbourhood,
     local_neighbourhood_reference,
@@ -84,11 +87,7 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
     tg = np.empty(N, dtype=np.int64)
     blk = n_cand * L
     M = blk * K
-    start = fstate[0]
-    best = fstate[1]
-    it_best = fstate[2]
-    it = istate[0]
-    first = istate[1]
+    start, best, it_best, it, first = _resumed(fstate, istate)
     used = 0
     state_p, state_t = it_p, it_t
     it_p = state_p.copy()  # local copies in the loops (the caller's arrays could alias others)
@@ -96,7 +95,7 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
     while it < iterations:
         if first == 0:
             it_best = -np.inf
-        end = samples if budget - used >= samples - first else first + (budget - used)
+        end = _chunk_end(samples, first, budget, used)
         for _s in range(first, end):
             for i in range(N):
                 pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
@@ -111,12 +110,7 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
                 it_t[:] = tg
         used += end - first
         if end < samples:  # the budget ran out inside this iteration's sampling: pause here
-            fstate[1] = best
-            fstate[2] = it_best
-            istate[0] = it
-            istate[1] = end
-            state_p[:] = it_p
-            state_t[:] = it_t
+            _pause(fstate, istate, best, it_best, it, end, state_p, state_t, it_p, it_t)
             return False
         first = 0
         if it_best == -np.inf:

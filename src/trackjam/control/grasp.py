@@ -151,6 +151,33 @@ def _sample_xi(p_flat, kk, n, p, q):
     return kernel_at_least(p, n, q)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _resumed(fstate, istate):
+    """The state a resumable search (:func:`kernel_grasp_resume`) left between calls: (value of
+    the start, best value, value of the iteration's best sample, iteration, sample)."""
+    return fstate[0], fstate[1], fstate[2], istate[0], istate[1]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _chunk_end(samples, first, budget, used):
+    """Where this call samples the current iteration up to: its end, or where ``budget`` joint
+    samples, ``used`` of them already drawn by the call, run out."""
+    return samples if budget - used >= samples - first else first + (budget - used)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _pause(fstate, istate, best, it_best, it, sample, state_a, state_b, it_a, it_b):
+    """Keep a resumable search's state when its budget runs out at ``sample`` of iteration
+    ``it``: the values, the position, and the iteration's best sample ``it_a``/``it_b`` in the
+    caller's ``state_a``/``state_b``."""
+    fstate[1] = best
+    fstate[2] = it_best
+    istate[0] = it
+    istate[1] = sample
+    state_a[:] = it_a
+    state_b[:] = it_b
+
+
 @njit(cache=True, nogil=True)
 def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, n_cand, neigh, n_neigh,
                         samples, iterations, best_cand, best_level, start_cand, start_level, it_c, it_l,
@@ -176,11 +203,7 @@ def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
     p_flat = p_s.reshape(S, N, -1)  # pair k = c * L + l
     pair_c = np.arange(p_flat.shape[2]) // L
     pair_l = np.arange(p_flat.shape[2]) % L
-    start = fstate[0]
-    best = fstate[1]
-    it_best = fstate[2]
-    it = istate[0]
-    first = istate[1]
+    start, best, it_best, it, first = _resumed(fstate, istate)
     used = 0
     state_c, state_l = it_c, it_l
     it_c = state_c.copy()  # local copies in the loops (the caller's arrays could alias others)
@@ -189,7 +212,7 @@ def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
         # 1. greedy randomised solution: best feasible of n_s uniform joint samples
         if first == 0:
             it_best = -np.inf
-        end = samples if budget - used >= samples - first else first + (budget - used)
+        end = _chunk_end(samples, first, budget, used)
         for _s in range(first, end):
             for i in range(N):
                 kk[i] = min(int(rng.random() * M[i]), M[i] - 1)
@@ -210,12 +233,7 @@ def kernel_grasp_resume(rng, me, p_s, w, gain, levels_w, delta, n, constrained, 
                         it_l[i] = lv[i]
         used += end - first
         if end < samples:  # the budget ran out inside this iteration's sampling: pause here
-            fstate[1] = best
-            fstate[2] = it_best
-            istate[0] = it
-            istate[1] = end
-            state_c[:] = it_c
-            state_l[:] = it_l
+            _pause(fstate, istate, best, it_best, it, end, state_c, state_l, it_c, it_l)
             return False
         first = 0
         if it_best == -np.inf:

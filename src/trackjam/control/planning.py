@@ -67,7 +67,7 @@ def search_point(coasted: Sequence[np.ndarray], predicted: Sequence, aims: np.nd
         return np.clip(np.mean([c[:3] for c in coasted], axis=0), low, high)
     compact = [
         est.mean[:3] for est in predicted
-        if np.sqrt(np.trace(est.cov[:3, :3]) / 3) < COMPACT_SPREAD_M
+        if position_spread(est.cov) < COMPACT_SPREAD_M
     ]
     if compact:
         return np.clip(np.mean(compact, axis=0), low, high)
