@@ -88,6 +88,11 @@ def test_overrides_are_dotted_and_validated():
         ("filter.mode={mass: 1.5}", "filter.mode.mass", "less than or equal to 1"),
         ("filter.mode={radius: 5, weight: 0.2}", "filter.mode.weight", "unknown key"),
         ("fusion.share=gossip", "fusion.share", "posteriors"),
+        ("filter.response.steps=0", "filter.response.steps", "greater than or equal to 1"),
+        ("filter.response={action: fly}", "filter.response.action", "'land', 'hover' or 'return'"),
+        ("filter.response.speed=-1", "filter.response.speed", "greater than 0"),
+        ("filter.response.threshold_db=.nan", "filter.response.threshold_db", "finite"),
+        ("filter.response={action: land, delay: 2}", "filter.response.delay", "unknown key"),
     ],
 )
 def test_bad_values_give_one_line_naming_the_key(override, key, words):

@@ -101,8 +101,9 @@ def test_the_ball_around_a_target_in_a_corner_is_cut_to_the_area():
 
 
 def test_every_cell_is_swarm3_with_its_targets_landing_when_jammed():
-    # the experiment keeps the cue at rest, as its published results were measured
-    preset = load_scenario("swarm-3", overrides=["filter.cue.velocity=zero"])
+    # the experiment keeps the cue at rest, as its published results were measured, and its
+    # filters expect the targets' fail-safe
+    preset = load_scenario("swarm-3", overrides=["filter.cue.velocity=zero", "filter.response={action: land}"])
     ss = _scenarios(k=1, seed=4)
     for label, s in ss.items():
         for section in ("antenna", "sensor", "filter", "fusion", "control"):
@@ -112,6 +113,7 @@ def test_every_cell_is_swarm3_with_its_targets_landing_when_jammed():
             assert mine == theirs, (label, section)
         assert all(t.response is not None and t.response.action == "land" for t in s.target_list)
         assert all(t.response.threshold_db == -40 and t.response.steps == 3 for t in s.target_list)
+        assert s.filter.response.model_dump() == s.target_list[0].response.model_dump()
         assert s.agents.initial_aim is None and s.steps == 30
     s = ss["K=3, N=5"]
     assert s.targets is not None and len(s.targets) == 3 and s.n_agents == 5

@@ -373,6 +373,13 @@ class Filter(_Model):
         "covariance of the particles within `radius` of the densest point of its density when they hold at least "
         "`mass` of its weight, else of all of them; null: the mean of all (the paper)",
     )
+    response: Response | None = Field(
+        None,
+        description="the jamming fail-safe the filters expect (ours), the fields of target.response: once the team's "
+        "cones have delivered >= `threshold_db` to most of a confirmed track's weight for `steps` steps in a row, the "
+        "track's particles move as the fail-safe (`action` at `speed`) instead of at constant velocity; null: Eq. (1) "
+        "always (the paper)",
+    )
 
 
 class Fusion(_Model):

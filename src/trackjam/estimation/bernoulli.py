@@ -50,6 +50,7 @@ from typing import Sequence
 import numpy as np
 from scipy.special import expit
 
+from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, fail_safe_move, jammed_share
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
     YOUNG_INFLATE,
@@ -265,6 +266,7 @@ class FilterParams:
     clutter_rate: float  # lambda_c
     visibility: tuple[float, float] | None = None  # (hide, reappear) per step; None: always visible (the paper)
     mode: tuple[float, float] | None = None  # filter.mode (radius [m], least weight); None: the mean of s_t (the paper)
+    response: FailSafe | None = None  # filter.response: the fail-safe it expects of a jammed target; None: Eq. (1) always
 
 
 class BernoulliFilter:
@@ -313,6 +315,8 @@ class BernoulliFilter:
 
         self.visibility = None if f.visibility is None else (float(f.visibility[0]), float(f.visibility[1]))
         self.mode = None if f.mode is None else (float(f.mode[0]), float(f.mode[1]))
+        self.response = f.response
+        self.watch = JamWatch()  # filter.response: the target's jammed steps in a row, and whether it is downed
         if self.mode is not None and not (self.mode[0] > 0.0 and 0.0 < self.mode[1] <= 1.0):
             raise ValueError(f"mode must be (radius > 0, least weight in (0, 1]), got {self.mode}")
         self.nu = 1.0  # P(visible | the target exists), after the last update
@@ -356,7 +360,10 @@ class BernoulliFilter:
             self._w_birth = self.p_b * (1.0 - e_prev) / e_pred
         else:  # no mass anywhere; keep the survivors as the (irrelevant) spatial density
             self._w_surv, self._w_birth = 1.0, 0.0
-        self._move(self._X)
+        if self.watch.downed:  # filter.response: the survivors move as the fail-safe (estimation/failsafe.py)
+            fail_safe_move(self._X, self.rng.standard_normal((len(self._X), 3)), self.response, self.accel_var)
+        else:
+            self._move(self._X)
         M = self._young_mass
         parts = [(self._w_surv * (1.0 - M), *weighted_moments(self._X, np.exp(self._log_w)))]
         if self._young is not None:
@@ -510,6 +517,21 @@ class BernoulliFilter:
             self._last = Estimate(self.e, mean.copy(), cov.copy())
         else:
             self._last = Estimate(self.e, self._last.mean, self._last.cov)
+
+    def note_jamming(self, positions: np.ndarray, points: np.ndarray, levels_w: np.ndarray) -> None:
+        """``filter.response``, after the step's update (and fusion): count the step as jammed
+        when the team's cones (senders at ``positions`` aimed at ``points`` with ``levels_w``)
+        deliver the threshold to at least half of the posterior weight; the target is downed
+        after the response's steps in a row (:mod:`trackjam.estimation.failsafe`). Nothing
+        without a response."""
+        if self.response is None:
+            return
+        confirmed = self.e > 0.5
+        share = 0.0
+        if confirmed:
+            X, log_w = self._survivors()
+            share = jammed_share(X, np.exp(log_w), positions, points, levels_w, self.ant, self.response.threshold_w)
+        self.watch = self.watch.after(share >= JAMMED_SHARE, confirmed, self.response.steps)
 
     def _survivors(self) -> tuple[np.ndarray, np.ndarray]:
         """The surviving density's particles and normalised log-weights: the resampled part and,

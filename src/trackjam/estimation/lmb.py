@@ -46,6 +46,7 @@ import numpy as np
 
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
+from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, fail_safe_move, jammed_share
 from trackjam.estimation.kernels import kernel_cv_predict, kernel_logsumexp, kernel_reflect, kernel_systematic_indices
 from trackjam.estimation.lmb_association import association_marginals
 from trackjam.estimation.lmb_kernels import (
@@ -87,6 +88,7 @@ class LMBParams:
     gibbs_samples: int = 1000  # Gibbs sweeps per update
     ranked_k: int = 200  # hypotheses of the ranked assignment
     visibility: tuple[float, float] | None = None  # (hide, reappear) per step: the hidden-target mode; None: always visible
+    response: FailSafe | None = None  # filter.response: the fail-safe it expects of a jammed target; None: Eq. (1) always
 
     def __post_init__(self):
         if self.association not in ("gibbs", "ranked"):
@@ -113,6 +115,7 @@ class Track:
     log_w: np.ndarray
     confirmed: bool = False
     nu: float = 1.0
+    watch: JamWatch = JamWatch()  # filter.response: its jammed steps in a row, and whether it is downed
 
 
 @dataclass(frozen=True)
@@ -284,7 +287,10 @@ class LMBFilter:
         vis = self.p.visibility
         for t in self.tracks:
             X = t.X.copy()
-            self._move(X)
+            if t.watch.downed:  # filter.response: a downed track moves as the fail-safe
+                fail_safe_move(X, self.rng.standard_normal((len(X), 3)), self.p.response, self.p.accel_var)
+            else:
+                self._move(X)
             nu = t.nu if vis is None else (1.0 - vis[0]) * t.nu + vis[1] * (1.0 - t.nu)
             moved.append(replace(t, r=self.p.survival_prob * t.r, X=X, nu=nu))
         for t in self._births:
@@ -326,6 +332,22 @@ class LMBFilter:
                 self._births.append(Track((self.step + 1, j), float(r_b), *drawn))
         self._predicted = False
         return self.estimates()
+
+    def note_jamming(self, positions: np.ndarray, points: np.ndarray, levels_w: np.ndarray) -> None:
+        """``filter.response``, after the step's update: each track counts the step as jammed
+        when the team's cones deliver the threshold to at least half of its weight, and is
+        downed after the response's steps in a row (:mod:`trackjam.estimation.failsafe`); a
+        track not confirmed (r <= 0.5) starts over. Nothing without a response."""
+        fs = self.p.response
+        if fs is None:
+            return
+        self.tracks = [
+            replace(t, watch=t.watch.after(
+                t.r > CONFIRM and jammed_share(t.X, np.exp(t.log_w), positions, points, levels_w, self.ant,
+                                               fs.threshold_w) >= JAMMED_SHARE,
+                t.r > CONFIRM, fs.steps)) if (t.r > CONFIRM or t.watch != JamWatch()) else t
+            for t in self.tracks
+        ]
 
     def _resampled(self, t: Track) -> Track:
         n = self.p.particles if t.confirmed else min(self.p.birth_particles, self.p.particles)

@@ -172,8 +172,9 @@ def swarm_experiment(grid: str | None = None) -> Experiment:
         metrics=SWARM_METRICS,
         trials=SWARM,
         preset="swarm-3",
-        # the cue at rest, as the README's results were measured (the preset cues velocities since)
-        base_settings={"filter.cue.velocity": "zero"},
+        # the cue at rest, as the README's results were measured (the preset cues velocities since);
+        # the filters expect the fail-safe the targets have (filter.response: estimation/failsafe.py)
+        base_settings={"filter.cue.velocity": "zero", "filter.response": dict(RESPONSE)},
         trial=swarm_trial,
         figure_style="lines",
         shown=SWARM_SHOWN,

@@ -21,6 +21,7 @@ from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
 from trackjam.errors import ConfigError
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
+from trackjam.estimation.failsafe import FailSafe
 from trackjam.estimation.lmb import LMBParams
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.team import TeamSettings
@@ -38,12 +39,15 @@ def default_threads(n_agents: int) -> int:
     return max(1, min(n_agents, os.cpu_count() or 1))
 
 
+def _home(r, low: np.ndarray) -> np.ndarray:
+    return np.asarray(r.home if r.home is not None else (low[0], low[1], low[2]), dtype=float)
+
+
 def target_params(s: Scenario) -> TargetParams:
     tg, low = s.target, np.asarray(s.area.low, dtype=float)
     r = tg.response
     response = None if r is None else Response(
-        threshold_w=10 ** (r.threshold_db / 10), steps=r.steps, action=r.action, speed=r.speed,
-        home=np.asarray(r.home if r.home is not None else (low[0], low[1], low[2]), dtype=float),
+        threshold_w=10 ** (r.threshold_db / 10), steps=r.steps, action=r.action, speed=r.speed, home=_home(r, low),
     )
     return TargetParams(
         low=low,
@@ -96,7 +100,17 @@ def filter_params(s: Scenario) -> FilterParams:
         clutter_rate=float(s.sensor.clutter_rate),
         visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
         mode=None if f.mode is None else (float(f.mode.radius), float(f.mode.mass)),
+        response=fail_safe(s),
     )
+
+
+def fail_safe(s: Scenario) -> FailSafe | None:
+    """``filter.response``: the fail-safe the filters expect (None: Eq. (1) always, the paper)."""
+    r, low = s.filter.response, np.asarray(s.area.low, dtype=float)
+    if r is None:
+        return None
+    return FailSafe(threshold_w=10 ** (r.threshold_db / 10), steps=int(r.steps), action=r.action, speed=float(r.speed),
+                    home=_home(r, low), ground=float(low[2]))
 
 
 def make_filter(s: Scenario, rng: np.random.Generator, **options) -> BernoulliFilter:
@@ -255,6 +269,7 @@ def lmb_params(s: Scenario) -> LMBParams:
         low=np.asarray(s.area.low, dtype=float), high=np.asarray(s.area.high, dtype=float),
         noise_std=np.asarray(s.sensor.noise_std, dtype=float), clutter_rate=float(s.sensor.clutter_rate),
         visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
+        response=fail_safe(s),
     )
 
 

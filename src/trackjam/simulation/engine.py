@@ -128,6 +128,7 @@ class Simulation:
         scans = self._scans(tx)
         posteriors = team.update([Z for Z, _ in scans], tx.points, tx.level_w)
         fused = team.fuse(posteriors)
+        team.note_jamming(tx.points, tx.level_w)
         report = next((d for d in decisions if d.mode != "down"), decisions[0])
         existence = np.nan if fused is None else fused.existence
         est = fused.mean[:3] if (fused is not None and fused.mean is not None and seen(fused) > CONFIRM

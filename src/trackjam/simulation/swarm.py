@@ -257,6 +257,8 @@ class SwarmSimulation:
         team = informed_fusion(fuse_tracks(own), own, informed)
         if b.team.feedback and not shared:
             self._feed_back(team)
+        for a in self.agents:  # filter.response: each filter knows the team's transmissions of the step
+            a.filter.note_jamming(positions, points, level_w)
         sure = confirmed(team)
         if self.memory is not None:
             self.memory.remember(t, [(track_label(f), f.estimate.mean, f.estimate.cov) for f in sure])

@@ -296,6 +296,13 @@ class Team:
         return report
 
 
+    def note_jamming(self, points: np.ndarray, levels_w: np.ndarray) -> None:
+        """``filter.response``: every working agent's filter weighs the step's transmissions of
+        the whole team (each agent adopted a plan holding every teammate's move, level and aim)."""
+        positions = self.positions
+        for j in self.working():
+            self.agents[j].filter.note_jamming(positions, points, levels_w)
+
     def _own_estimates(self, posteriors: list[Message | None]) -> FusedEstimate | None:
         """fusion.share: scans: every agent's filter already holds the scans it received, so its
         own posterior is its team estimate; the report is the lowest-index working agent's."""
