@@ -8,7 +8,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from trackjam.config import load_scenario
-from trackjam.estimation.failsafe import FailSafe, JamWatch, fail_safe_move, jammed_share, received_at
+from trackjam.estimation.failsafe import FailSafe, JamWatch, fail_safe_move, following, jammed_share, move_downed, received_at
+from trackjam.estimation.kernels import kernel_cv_predict
 from trackjam.estimation.lmb import LMBFilter, Track
 from trackjam.radio.antenna import received_power
 from trackjam.simulation.build import antenna_model, fail_safe, lmb_params, make_filter
@@ -22,8 +23,8 @@ coord = st.floats(0.0, 100.0)
 speed = st.floats(-9.0, 9.0)
 
 
-def fs_of(action: str, speed: float = 2.0, steps: int = 3) -> FailSafe:
-    return FailSafe(threshold_w=1e-4, steps=steps, action=action, speed=speed, home=HOME, ground=0.0)
+def fs_of(action: str, speed: float = 2.0, steps: int = 3, hedge: float = 0.0) -> FailSafe:
+    return FailSafe(threshold_w=1e-4, steps=steps, action=action, speed=speed, home=HOME, ground=0.0, hedge=hedge)
 
 
 def truth_fail_safe(x: np.ndarray, action: str, speed: float) -> np.ndarray:
@@ -95,7 +96,7 @@ def test_the_watch_downs_a_track_after_its_steps_in_a_row_and_forgets_an_unconfi
                                            (False, True, 3, True), (True, False, 0, False)]:
         w = w.after(jammed, confirmed, 3)
         assert (w.run, w.downed) == (run, downed)
-    assert JamWatch().after(True, True, 1).downed
+    assert JamWatch().after(True, True, 1).downed and JamWatch().after(True, True, 1).fresh
 
 
 def test_a_downed_bernoulli_filter_predicts_the_fail_safe_and_a_silent_one_eq1():
@@ -180,3 +181,62 @@ def test_the_team_downs_its_track_when_the_truth_lands_and_keeps_it():
         after = r.steps["t"] > truth_down
         held[name] = (float(np.mean(np.nan_to_num(err[after], nan=np.inf) <= 5.0)), float(np.nanmean(err[after])))
     assert held["fs"][0] == 1.0 and held["fs"][1] < held["cv"][1]
+
+
+
+def _cloud(rng, n=4000):
+    return np.column_stack([rng.uniform(30, 90, (n, 3)), rng.uniform(-4, 4, (n, 3))])
+
+
+@pytest.mark.parametrize("action", ["land", "hover", "return"])
+def test_the_particles_that_follow_the_fail_safe_are_read_from_their_velocity(action):
+    rng = np.random.default_rng(3)
+    fs = fs_of(action)
+    X = _cloud(rng)
+    assert following(X, fs).mean() < 0.01  # flying particles do not look as if they followed it
+    fail_safe_move(X, rng.standard_normal((len(X), 3)), fs, accel_var=0.5)
+    assert following(X, fs).all()
+    fail_safe_move(X, rng.standard_normal((len(X), 3)), fs, accel_var=0.5)  # and go on doing so
+    assert following(X, fs).all()
+    kernel_cv_predict(X, rng.standard_normal((len(X), 3)), 1.0, np.sqrt(0.5))
+    # Eq. (1) leaves no exact zero; a step towards home stays near one for a few particles
+    assert following(X, fs).mean() < (0.05 if action == "return" else 0.001)
+
+
+def test_without_a_hedge_a_downed_track_moves_all_its_particles_as_before():
+    X = _cloud(np.random.default_rng(1))
+    Y = X.copy()
+    move_downed(X, np.random.default_rng(7), fs_of("land"), 0.5, None, fresh=True)
+    fail_safe_move(Y, np.random.default_rng(7).standard_normal((len(Y), 3)), fs_of("land"), 0.5)
+    np.testing.assert_array_equal(X, Y)
+
+
+def test_a_hedged_track_keeps_its_two_branches_from_the_downing_on():
+    rng = np.random.default_rng(2)
+    fs = fs_of("land", hedge=0.3)
+    X = _cloud(rng, 20000)
+    v0 = X[:, 3:].copy()
+    cv = lambda Y: kernel_cv_predict(Y, rng.standard_normal((len(Y), 3)), 1.0, np.sqrt(0.5))  # noqa: E731
+    move_downed(X, rng, fs, 0.5, cv, fresh=True)
+    branch = following(X, fs)
+    assert branch.mean() == pytest.approx(0.7, abs=0.02)
+    # the flying branch kept its velocity up to Eq. (1)'s noise; the other one lands
+    assert np.abs(X[~branch, 3:] - v0[~branch]).mean() < 1.0
+    np.testing.assert_allclose(X[branch, 3:5], 0.0)
+    move_downed(X, rng, fs, 0.5, cv, fresh=False)
+    np.testing.assert_array_equal(following(X, fs), branch)  # nobody changes branch afterwards
+
+
+def test_a_hedged_bernoulli_filter_predicts_the_mixture_of_the_two_branches():
+    s = load_scenario("paper-fig3", ["filter.response={action: land, hedge: 0.25}", "filter.birth_prob=0"])
+    f = make_filter(s, np.random.default_rng(1))
+    f.reset_to(0.99, np.array([40.0, 40.0, 30.0, 3.0, 1.0, 2.0]), np.diag([0.2, 0.2, 0.2, 0.05, 0.05, 0.05]))
+    ant = antenna_model(s)
+    u, aim = np.array([[40.0, 40.0, 25.0]]), np.array([[40.0, 40.0, 30.0]])
+    for _ in range(3):
+        f.note_jamming(u, aim, ant.levels_w[[3]])
+    assert f.watch.downed and f.watch.fresh
+    pred = f.predict()
+    assert not f.watch.fresh
+    np.testing.assert_allclose(pred.mean[3:], 0.25 * np.array([3.0, 1.0, 2.0]) + 0.75 * np.array([0.0, 0.0, -2.0]),
+                               atol=0.06)

@@ -116,6 +116,15 @@ class Response(_Model):
     )
 
 
+class ExpectedResponse(Response):
+    """The fail-safe the filters expect (``filter.response``, ours): the target's fields and a hedge."""
+
+    hedge: Prob = Field(
+        0.0, description="share of a downed track's particles that keep flying at constant velocity, drawn at the "
+        "downing, in [0, 1]; 0: all of them take the fail-safe",
+    )
+
+
 class Target(_Model):
     """The truth target (Section III-A)."""
 
@@ -373,7 +382,7 @@ class Filter(_Model):
         "covariance of the particles within `radius` of the densest point of its density when they hold at least "
         "`mass` of its weight, else of all of them; null: the mean of all (the paper)",
     )
-    response: Response | None = Field(
+    response: ExpectedResponse | None = Field(
         None,
         description="the jamming fail-safe the filters expect (ours), the fields of target.response: once the team's "
         "cones have delivered >= `threshold_db` to most of a confirmed track's weight for `steps` steps in a row, the "

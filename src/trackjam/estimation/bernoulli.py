@@ -50,7 +50,7 @@ from typing import Sequence
 import numpy as np
 from scipy.special import expit
 
-from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, fail_safe_move, jammed_share
+from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, jammed_share, move_downed
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
     YOUNG_INFLATE,
@@ -361,7 +361,8 @@ class BernoulliFilter:
         else:  # no mass anywhere; keep the survivors as the (irrelevant) spatial density
             self._w_surv, self._w_birth = 1.0, 0.0
         if self.watch.downed:  # filter.response: the survivors move as the fail-safe (estimation/failsafe.py)
-            fail_safe_move(self._X, self.rng.standard_normal((len(self._X), 3)), self.response, self.accel_var)
+            move_downed(self._X, self.rng, self.response, self.accel_var, self._move, self.watch.fresh)
+            self.watch = replace(self.watch, fresh=False)
         else:
             self._move(self._X)
         M = self._young_mass
@@ -515,6 +516,8 @@ class BernoulliFilter:
             self._log_w = np.full(self.n, -math.log(self.n))
             self._young = None
             self._last = Estimate(self.e, mean.copy(), cov.copy())
+            if self.watch.downed:  # the redrawn particles take the hedge's branches again
+                self.watch = replace(self.watch, fresh=True)
         else:
             self._last = Estimate(self.e, self._last.mean, self._last.cov)
 

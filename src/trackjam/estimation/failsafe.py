@@ -49,6 +49,7 @@ class FailSafe:
     speed: float  # [m/step] while landing or returning
     home: np.ndarray  # (3,) where "return" flies to [m]
     ground: float  # z of the area's floor, where "land" ends [m]
+    hedge: float = 0.0  # share of a downed track's particles that keep flying by Eq. (1)
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,7 @@ class JamWatch:
 
     run: int = 0
     downed: bool = False
+    fresh: bool = False  # downed (or reseeded) since the last prediction: the hedge is drawn at the next one
 
     def after(self, jammed: bool, confirmed: bool, steps: int) -> "JamWatch":
         """The watch after one update: reset when the track is not confirmed; else count the
@@ -67,7 +69,7 @@ class JamWatch:
         if self.downed:
             return self
         run = self.run + 1 if jammed else 0
-        return JamWatch(run, run >= steps)
+        return JamWatch(run, run >= steps, run >= steps)
 
 
 def received_at(X: np.ndarray, positions: np.ndarray, points: np.ndarray, levels_w: np.ndarray,
@@ -133,3 +135,42 @@ def fail_safe_move(X: np.ndarray, noise: np.ndarray, fs: FailSafe, accel_var: fl
     X[:, 3:6] = step
     if fs.action == "land":
         np.maximum(X[:, 2], fs.ground, out=X[:, 2])  # the noise does not take it underground
+
+
+def following(X: np.ndarray, fs: FailSafe) -> np.ndarray:
+    """(n,) which particles already move as the fail-safe, read from the velocity that
+    :func:`fail_safe_move` left them: ``land`` vx = vy = 0 exactly, ``hover`` v = 0 exactly,
+    ``return`` v = 0 or a step of at most ``speed`` pointing home (within 8 deg, the position
+    noise aside). A particle flying by Eq. (1) has no exact zero."""
+    v = X[:, 3:6]
+    if fs.action == "land":
+        return (v[:, 0] == 0.0) & (v[:, 1] == 0.0)
+    still = np.all(v == 0.0, axis=1)
+    if fs.action == "hover":
+        return still
+    d = fs.home - (X[:, :3] - v)  # home from where the step started, up to the noise
+    nv, nd = np.linalg.norm(v, axis=1), np.linalg.norm(d, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        aligned = np.sum(v * d, axis=1) >= 0.99 * nv * nd
+    return still | ((nv <= fs.speed * (1 + 1e-9)) & aligned)
+
+
+def move_downed(X: np.ndarray, rng: np.random.Generator, fs: FailSafe, accel_var: float, cv_move, fresh: bool) -> None:
+    """One prediction of a downed track's particles ``X``, in place. Without a hedge every
+    particle moves as the fail-safe. With ``fs.hedge`` = h: at the prediction after the downing
+    (or after a reseed from a Gaussian, ``fresh``) each particle takes the fail-safe with
+    probability 1 - h and keeps flying by Eq. (1) (``cv_move``) otherwise; after that each keeps
+    its branch (:func:`following`), so the detections choose between the two."""
+    if fs.hedge == 0.0:
+        fail_safe_move(X, rng.standard_normal((len(X), 3)), fs, accel_var)
+        return
+    mask = rng.uniform(size=len(X)) >= fs.hedge if fresh else following(X, fs)
+    for idx, fail in ((np.flatnonzero(mask), True), (np.flatnonzero(~mask), False)):
+        if len(idx) == 0:
+            continue
+        Y = np.ascontiguousarray(X[idx])
+        if fail:
+            fail_safe_move(Y, rng.standard_normal((len(Y), 3)), fs, accel_var)
+        else:
+            cv_move(Y)
+        X[idx] = Y

@@ -46,7 +46,7 @@ import numpy as np
 
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
-from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, fail_safe_move, jammed_share
+from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, jammed_share, move_downed
 from trackjam.estimation.kernels import kernel_cv_predict, kernel_logsumexp, kernel_reflect, kernel_systematic_indices
 from trackjam.estimation.lmb_association import association_marginals
 from trackjam.estimation.lmb_kernels import (
@@ -287,12 +287,14 @@ class LMBFilter:
         vis = self.p.visibility
         for t in self.tracks:
             X = t.X.copy()
-            if t.watch.downed:  # filter.response: a downed track moves as the fail-safe
-                fail_safe_move(X, self.rng.standard_normal((len(X), 3)), self.p.response, self.p.accel_var)
+            watch = t.watch
+            if watch.downed:  # filter.response: a downed track moves as the fail-safe
+                move_downed(X, self.rng, self.p.response, self.p.accel_var, self._move, watch.fresh)
+                watch = replace(watch, fresh=False)
             else:
                 self._move(X)
             nu = t.nu if vis is None else (1.0 - vis[0]) * t.nu + vis[1] * (1.0 - t.nu)
-            moved.append(replace(t, r=self.p.survival_prob * t.r, X=X, nu=nu))
+            moved.append(replace(t, r=self.p.survival_prob * t.r, X=X, nu=nu, watch=watch))
         for t in self._births:
             X = t.X.copy()
             self._move(X)
@@ -375,6 +377,8 @@ class LMBFilter:
                 n = self.p.particles
                 X = np.asarray(mean, float) + self.rng.standard_normal((n, 6)) @ (V * np.sqrt(np.clip(lam, 0, None))).T
                 t = replace(t, X=X, log_w=np.full(n, -math.log(n)))
+                if t.watch.downed:  # the redrawn particles take the hedge's branches again
+                    t = replace(t, watch=replace(t.watch, fresh=True))
             self.tracks[i] = t
             return
         raise KeyError(f"no track labelled {label}")

@@ -110,7 +110,7 @@ def fail_safe(s: Scenario) -> FailSafe | None:
     if r is None:
         return None
     return FailSafe(threshold_w=10 ** (r.threshold_db / 10), steps=int(r.steps), action=r.action, speed=float(r.speed),
-                    home=_home(r, low), ground=float(low[2]))
+                    home=_home(r, low), ground=float(low[2]), hedge=float(r.hedge))
 
 
 def make_filter(s: Scenario, rng: np.random.Generator, **options) -> BernoulliFilter:
