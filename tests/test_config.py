@@ -93,6 +93,8 @@ def test_overrides_are_dotted_and_validated():
         ("filter.response.speed=-1", "filter.response.speed", "greater than 0"),
         ("filter.response.threshold_db=.nan", "filter.response.threshold_db", "finite"),
         ("filter.response={action: land, delay: 2}", "filter.response.delay", "unknown key"),
+        ("filter.response.hedge=1.5", "filter.response.hedge", "less than or equal to 1"),
+        ("target.response={action: land, hedge: 0.2}", "target.response.hedge", "unknown key"),
     ],
 )
 def test_bad_values_give_one_line_naming_the_key(override, key, words):
