@@ -50,7 +50,7 @@ from typing import Sequence
 import numpy as np
 from scipy.special import expit
 
-from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, jammed_share, move_downed
+from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
     YOUNG_INFLATE,
@@ -529,12 +529,8 @@ class BernoulliFilter:
         without a response."""
         if self.response is None:
             return
-        confirmed = self.e > 0.5
-        share = 0.0
-        if confirmed:
-            X, log_w = self._survivors()
-            share = jammed_share(X, np.exp(log_w), positions, points, levels_w, self.ant, self.response.threshold_w)
-        self.watch = self.watch.after(share >= JAMMED_SHARE, confirmed, self.response.steps)
+        self.watch = watched(self.watch, self.e > 0.5, self._survivors, positions, points, levels_w, self.ant,
+                             self.response)
 
     def _survivors(self) -> tuple[np.ndarray, np.ndarray]:
         """The surviving density's particles and normalised log-weights: the resampled part and,

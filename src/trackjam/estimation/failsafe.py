@@ -27,9 +27,9 @@ track (the one Bernoulli component, or each LMB track):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from numba import njit
@@ -115,9 +115,24 @@ def jammed_share(X: np.ndarray, w: np.ndarray, positions: np.ndarray, points: np
                                      ant.height, math.tan(ant.half_angle), ant.r0, ant.n_e, float(threshold_w)))
 
 
+def watched(watch: JamWatch, confirmed: bool, particles: Callable[[], tuple[np.ndarray, np.ndarray]],
+            positions: np.ndarray, points: np.ndarray, levels_w: np.ndarray, ant: AntennaModel,
+            fs: FailSafe) -> JamWatch:
+    """A track's watch after an update: the step is jammed when the team's cones deliver the
+    threshold to at least :data:`JAMMED_SHARE` of its weight. ``particles()`` gives its particles
+    and normalised log-weights; it is called only for a confirmed track (an unconfirmed one
+    starts over)."""
+    jammed = False
+    if confirmed:
+        X, log_w = particles()
+        jammed = jammed_share(X, np.exp(log_w), positions, points, levels_w, ant, fs.threshold_w) >= JAMMED_SHARE
+    return watch.after(jammed, confirmed, fs.steps)
+
+
 def fail_safe_move(X: np.ndarray, noise: np.ndarray, fs: FailSafe, accel_var: float) -> None:
     """One step of the fail-safe for every particle, in place: the truth's move
-    (:meth:`trackjam.world.target.TruthTarget._fail_safe`) plus the position noise
+    (:meth:`trackjam.world.target.TruthTarget._fail_safe`, whose one-state scalar code stays the
+    reference this vectorised twin is tested against, to 1e-12) plus the position noise
     ``noise`` (n, 3) standard normals times sqrt(accel_var) / 2; the velocity becomes the step."""
     if len(X) == 0:
         return

@@ -46,7 +46,7 @@ import numpy as np
 
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
-from trackjam.estimation.failsafe import JAMMED_SHARE, FailSafe, JamWatch, jammed_share, move_downed
+from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
 from trackjam.estimation.kernels import kernel_cv_predict, kernel_logsumexp, kernel_reflect, kernel_systematic_indices
 from trackjam.estimation.lmb_association import association_marginals
 from trackjam.estimation.lmb_kernels import (
@@ -343,13 +343,9 @@ class LMBFilter:
         fs = self.p.response
         if fs is None:
             return
-        self.tracks = [
-            replace(t, watch=t.watch.after(
-                t.r > CONFIRM and jammed_share(t.X, np.exp(t.log_w), positions, points, levels_w, self.ant,
-                                               fs.threshold_w) >= JAMMED_SHARE,
-                t.r > CONFIRM, fs.steps)) if (t.r > CONFIRM or t.watch != JamWatch()) else t
-            for t in self.tracks
-        ]
+        self.tracks = [replace(t, watch=watched(t.watch, t.r > CONFIRM, lambda t=t: (t.X, t.log_w), positions, points,
+                                                levels_w, self.ant, fs))
+                       for t in self.tracks]
 
     def _resampled(self, t: Track) -> Track:
         n = self.p.particles if t.confirmed else min(self.p.birth_particles, self.p.particles)
