@@ -278,6 +278,8 @@ def _swarm_table(s, m: dict):
             + ("" if downed is None else f"  downed at step {downed}"))
     add("all targets: held / detectable target-steps",
         f"{m['held_steps_total']}/{m['detectable_steps_total']}  {_share(m['held_share_total'])}")
+    add(f"ceiling: a chaser within {m['ceiling_d_m']:g} m, per target (all)",
+        " ".join(_share(v) for v in m["ceiling_share"]) + f"  ({_share(m['ceiling_share_total'])})")
     add("steps with a false track (false tracks)", f"{m['false_track_steps']} ({m['false_tracks']})")
     add("label switches per target", " ".join(str(v) for v in m["label_switches"]))
     add("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")

@@ -47,3 +47,23 @@ def test_one_line_per_team_size_through_the_means():
                     assert y.max() <= 1.0 + 1e-12
     handles, labels = axes[0].get_legend_handles_labels()
     assert "one-target engine" in labels
+
+
+def test_the_ceiling_is_a_dashed_line_per_team_size_in_the_panels_that_name_it():
+    e = get_experiment("swarm")
+    rows = _rows(e, ci=0.05)
+    for r in rows:
+        r["ceiling_mean"], r["ceiling50_mean"] = 0.9 - 0.1 * r["targets"], 0.8 - 0.01 * r["agents"]
+    fig = swarm_figure(e, rows)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    with_reference = {p.title: p.series[1][0] for p in e.panels if len(p.series) > 1}
+    assert set(with_reference) == {"(a) held share per target", "(c) targets held on >= 50 % of their steps"}
+    for ax, panel in zip(axes, e.panels):
+        dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+        if panel.title not in with_reference:
+            assert not dashed
+            continue
+        assert len(dashed) == 4  # one per N, through that N's swarm-engine cells
+        want = {"ceiling": lambda k, n: 0.9 - 0.1 * k, "ceiling50": lambda k, n: 0.8 - 0.01 * n}[with_reference[panel.title]]
+        for ln, n in zip(dashed, (3, 4, 5, 6)):
+            np.testing.assert_allclose(ln.get_ydata(), [want(k, n) for k in (1, 2, 3, 4)])

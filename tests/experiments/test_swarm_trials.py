@@ -183,7 +183,7 @@ def test_the_record_is_what_the_per_step_classes_give():
     quality = multi_track_quality(*_truth_and_reports(classes), gate=5.0, ids=[0, 1, 2])
     ospa = np.array([[1.0, 1.0, 0.0], [5.0, 3.0, 4.0], [7.0, 1.0, 6.0], [3.0, 1.0, 2.0]])
     r = swarm_record(quality, classes, ospa, downed_at=[2, None, 4], incidents=[0, 2, 1], transmit_w=0.5,
-                     step_s=0.1, solve_s=0.01, steps={"t": np.arange(1, 5)})
+                     step_s=0.1, solve_s=0.01, steps={"t": np.arange(1, 5)}, ceiling=[1.0, 0.25, None])
     # per target held 3/4, 1/4, 2/2: mean, >= 50 %, missed over all detectable target-steps
     assert r["held_share"] == pytest.approx((0.75 + 0.25 + 1.0) / 3)
     assert r["held50_share"] == pytest.approx(2 / 3)
@@ -197,13 +197,16 @@ def test_the_record_is_what_the_per_step_classes_give():
     assert r["targets"]["held_share"] == pytest.approx([0.75, 0.25, 1.0])
     assert r["targets"]["downed_at"][0] == 2 and math.isnan(r["targets"]["downed_at"][1])
     np.testing.assert_array_equal(r["steps"]["held_targets"], [2, 1, 1, 2])
+    # the ceiling: over the targets that have one (never detectable: None)
+    assert r["ceiling_share"] == pytest.approx(0.625) and r["ceiling50_share"] == 0.5
+    assert r["targets"]["ceiling_share"][:2] == [1.0, 0.25] and math.isnan(r["targets"]["ceiling_share"][2])
 
 
 def test_a_record_without_a_downed_target_has_no_time_to_down():
     classes = np.array([[HELD], [MISSED]], dtype=np.int8)
     quality = multi_track_quality(*_truth_and_reports(classes), gate=5.0)
     r = swarm_record(quality, classes, np.zeros((2, 3)), downed_at=[None], incidents=[0], transmit_w=0.0,
-                     step_s=0.1, solve_s=0.01, steps={})
+                     step_s=0.1, solve_s=0.01, steps={}, ceiling=[1.0])
     assert r["downed_share"] == 0.0 and math.isnan(r["downed_step_mean"])
     assert r["held_airborne_share"] == r["held_share"] == 0.5 and r["held50_share"] == 1.0
 
@@ -214,7 +217,7 @@ def test_a_false_track_counts_per_step():
     reports[1] = (np.array(["x"]), np.array([[90.0, 90.0, 90.0]]))  # confirmed, far from the target
     quality = multi_track_quality(truth, reports, gate=5.0)
     r = swarm_record(quality, classes, np.zeros((2, 3)), downed_at=[None], incidents=[0], transmit_w=0.0,
-                     step_s=0.1, solve_s=0.01, steps={})
+                     step_s=0.1, solve_s=0.01, steps={}, ceiling=[1.0])
     assert r["false_tracks_per_step"] == 0.5 and r["missed_share"] == 0.5
 
 

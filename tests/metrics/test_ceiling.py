@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.metrics.ceiling import NEAR, chase, clairvoyant_ceiling
+from trackjam.metrics.ceiling import NEAR, chase, clairvoyant_ceiling, team_ceiling, team_chase, team_goals
 from trackjam.radio.antenna import detection_probability
 from trackjam.simulation.build import antenna_model
 
@@ -116,3 +116,106 @@ def test_bad_arguments_are_refused():
         chase(line([1.0]), [[0.0, 0, 0]], -1.0, LOW, HIGH)
     with pytest.raises(ValueError, match="true position"):
         clairvoyant_ceiling(line([np.nan]), [True], [[0.0, 0, 0]], 5.0, LOW, HIGH)
+
+
+# Several targets: the chasers shared out, every present target first given one of its own.
+
+
+def reference_goals(u, targets):
+    """team_goals in scalar Python: all (agent, target) pairs sorted by distance, then agent, then
+    target; a pair is taken when its agent is free and its target has no chaser; then the free
+    agents go to their nearest present target (the first of equals)."""
+    live = [k for k, x in enumerate(targets) if not any(math.isnan(v) for v in x)]
+    if not live:
+        return [-1] * len(u)
+    dist = lambda j, k: math.dist(u[j], targets[k])  # noqa: E731
+    goals, taken = [-1] * len(u), set()
+    for _, j, k in sorted((dist(j, k), j, k) for j in range(len(u)) for k in live):
+        if goals[j] < 0 and k not in taken:
+            goals[j] = k
+            taken.add(k)
+    return [g if g >= 0 else min(live, key=lambda k: (dist(j, k), k)) for j, g in enumerate(goals)]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_share_out_matches_its_scalar_reference(seed):
+    rng = np.random.default_rng(seed)
+    N, K = int(rng.integers(1, 7)), int(rng.integers(1, 5))
+    u = rng.uniform(0, 100, (N, 3))
+    x = rng.uniform(0, 100, (K, 3))
+    x[rng.random(K) < 0.25] = np.nan
+    if seed % 5 == 0:  # ties: agents on a grid, targets at equal distances
+        u, x = np.round(u / 50) * 50, np.round(x / 50) * 50
+    goals = team_goals(u, x)
+    assert list(goals) == reference_goals(u.tolist(), x.tolist())
+    live = np.flatnonzero(np.isfinite(x).all(axis=1))
+    if len(live):  # every present target has a chaser when there are agents enough, and only those
+        assert set(goals) <= set(live) and len(set(goals)) == min(N, len(live))
+    else:
+        assert np.all(goals == -1)
+
+
+def test_each_of_two_targets_keeps_its_own_chaser_and_the_third_agent_the_nearer_one():
+    x = np.array([[20.0, 50.0, 50.0], [80.0, 50.0, 50.0]])
+    u = np.array([[10.0, 50.0, 50.0], [90.0, 50.0, 50.0], [40.0, 50.0, 50.0]])
+    # agent 2 is nearer target 0 than agent 0 is, so it takes it; agent 0 then serves its nearest
+    assert list(team_goals(u, x)) == [0, 1, 0]
+    # two still targets, one chaser each, D m off: the nearest closes as max(0, D - k v)
+    T, D, v = 6, 20.0, 5.0
+    truth = np.repeat(x[None], T, axis=0)
+    c = team_ceiling(truth, np.ones((T, 2), bool), x + [[-D, 0, 0], [0, D, 0]], v, LOW, HIGH, d=8.0)
+    k = np.arange(1, T + 1)
+    np.testing.assert_allclose(c.nearest, np.stack([np.maximum(0, D - k * v)] * 2, axis=1), atol=1e-12)
+    assert c.shares == [4 / 6, 4 / 6] and c.total == 4 / 6
+
+
+def test_one_chaser_between_two_targets_serves_one_and_the_other_is_never_reached():
+    x = np.array([[30.0, 50.0, 50.0], [71.0, 50.0, 50.0]])
+    c = team_ceiling(np.repeat(x[None], 10, axis=0), np.ones((10, 2), bool), [[50.0, 50.0, 50.0]], 5.0, LOW, HIGH)
+    assert c.shares == [1.0 - 2 / 10, 0.0]  # 15, 10 then within 8 m: 8 of 10 steps; 21 m and more for the other
+    assert c.total == pytest.approx(8 / 20)
+
+
+def test_a_target_absent_or_hidden_is_not_counted_and_a_missing_one_is_not_chased():
+    x0, x1 = [20.0, 50.0, 50.0], [50.0, 50.0, 50.0]
+    truth = np.array([[x0, [np.nan] * 3], [x0, [np.nan] * 3], [x0, x1]])  # target 1 appears at step 3
+    detectable = np.array([[True, False], [False, False], [True, True]])  # target 0 hidden at step 2
+    u0 = [[10.0, 50.0, 50.0], [50.0, 50.0, 30.0]]
+    c = team_ceiling(truth, detectable, u0, 5.0, LOW, HIGH)
+    # both chase target 0 while it is the only one present, hidden or not; at step 3 agent 0 sits on
+    # it (the nearest pair) and agent 1 turns to target 1
+    np.testing.assert_allclose(c.positions[:, 0], reference_chase([x0] * 3, [u0[0]], 5.0, LOW, HIGH)[:, 0])
+    np.testing.assert_allclose(c.positions[:, 1], reference_chase([x0, x0, x1], [u0[1]], 5.0, LOW, HIGH)[:, 0])
+    assert np.isnan(c.nearest[0, 1]) and np.isnan(c.nearest[1, 1])
+    far = np.linalg.norm(c.positions[2, 1] - x1)
+    assert c.nearest[2, 1] == pytest.approx(far) and far > NEAR
+    assert c.shares == [1.0, 0.0] and c.total == 2 / 3  # target 0: 5 m and 0 m; target 1 out of reach
+    never = team_ceiling(truth, np.zeros((3, 2), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH)
+    assert never.shares == [None, None] and never.total is None
+
+
+@pytest.mark.parametrize("seed", range(15))
+def test_with_one_target_the_team_ceiling_is_the_chasers_ceiling(seed):
+    rng = np.random.default_rng(seed)
+    T, N = int(rng.integers(1, 20)), int(rng.integers(1, 5))
+    truth = rng.uniform(0, 100, (T, 3)).cumsum(axis=0) % 100
+    truth[rng.random(T) < 0.2] = np.nan
+    detectable = np.isfinite(truth).all(axis=1) & (rng.random(T) < 0.8)
+    initial = rng.uniform(0, 100, (N, 3))
+    one = clairvoyant_ceiling(truth, detectable, initial, 5.0, LOW, HIGH)
+    team = team_ceiling(truth[:, None], detectable[:, None], initial, 5.0, LOW, HIGH)
+    np.testing.assert_array_equal(team.positions, one.positions)
+    np.testing.assert_array_equal(team.nearest[:, 0], one.nearest)
+    assert team.shares == [one.share] and team.total == one.share
+
+
+def test_bad_team_arguments_are_refused():
+    x = np.zeros((2, 1, 3))
+    with pytest.raises(ValueError, match="max_step"):
+        team_chase(x, [[0.0, 0, 0]], -1.0, LOW, HIGH)
+    with pytest.raises(ValueError, match="d must be"):
+        team_ceiling(x, np.ones((2, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH, d=-1.0)
+    with pytest.raises(ValueError, match=r"\(T, K, 3\)"):
+        team_ceiling(np.zeros((2, 3)), np.ones((2, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH)
+    with pytest.raises(ValueError, match="true position"):
+        team_ceiling(np.full((1, 1, 3), np.nan), np.ones((1, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH)

@@ -13,6 +13,7 @@ from trackjam.estimation.bernoulli import weighted_moments
 from trackjam.estimation.fusion import FusedEstimate
 from trackjam.estimation.lmb import LMBFilter
 from trackjam.estimation.lmb_fusion import FusedTrack
+from trackjam.metrics.ceiling import team_ceiling
 from trackjam.metrics.multi import multi_track_quality, ospa_parts
 from trackjam.simulation.build import build_swarm, lmb_params
 from trackjam.simulation.loop import simulate
@@ -62,6 +63,12 @@ def test_the_summary_is_the_multi_target_metrics_of_the_logs(run):
     assert m["jamming_incidents"] == [int(v) for v in run.agents["jammed"].reshape(5, 3).sum(axis=0)]
     # the cue puts a confirmed track on each target at the start: both are held at step 1
     assert held[0].all()
+    # the team's ceiling on the run's own truth and start
+    tg, b = run.tables["targets"], build_swarm(two(solver="exact")).base
+    present = np.stack([tg[f"truth_{a}"] for a in "xyz"], axis=1).reshape(5, 2, 3)
+    c = team_ceiling(present, tg["detectable"].reshape(5, 2), b.initial_positions, b.max_step, b.low, b.high)
+    assert m["ceiling_share"] == c.shares and m["ceiling_share_total"] == c.total and m["ceiling_d_m"] == 8.0
+    assert len(m["ceiling_share"]) == 2 and all(0 <= v <= 1 for v in m["ceiling_share"])
 
 
 def test_a_track_holds_the_target_whose_row_names_it(run):

@@ -52,6 +52,9 @@ SWARM_METRICS: tuple[Metric, ...] = (
     ("held50", "held50_share", "share of the targets held on >= 50 % of their detectable steps [0-1]"),
     ("held_airborne", "held_airborne_share", "held share per target over its detectable steps up to the one it "
      "was downed at (all, if never downed) [0-1]"),
+    ("ceiling", "ceiling_share", "the clairvoyant-chaser ceiling per target: mean over the targets of the share of their "
+     "detectable steps with a chaser within 8 m, on the trial's own truth [0-1]"),
+    ("ceiling50", "ceiling50_share", "share of the targets whose ceiling is >= 50 % [0-1]"),
     ("missed", "missed_share", "missed target-steps / detectable target-steps [0-1]"),
     ("false_tracks", "false_tracks_per_step", "confirmed tracks assigned to no target, per step"),
     ("ospa", "ospa_mean", "multi-target OSPA (p=2, c=10 m), mean over steps [m]"),
@@ -145,9 +148,11 @@ def swarm_fields(draw: SwarmDraw, one_target: bool = False) -> dict[str, Any]:
 
 # ours, several targets: each metric against K, one line per N (experiments/swarm_figure.py)
 SWARM_PANELS = (
-    Panel("(a) held share per target", "share of detectable steps", (("held", None),)),
+    Panel("(a) held share per target", "share of detectable steps",
+          (("held", None), ("ceiling", "dashed: clairvoyant chasers within 8 m"))),
     Panel("(b) held share while airborne (until downed)", "share of detectable steps", (("held_airborne", None),)),
-    Panel("(c) targets held on >= 50 % of their steps", "share of targets", (("held50", None),)),
+    Panel("(c) targets held on >= 50 % of their steps", "share of targets",
+          (("held50", None), ("ceiling50", "dashed: the chasers' ceiling >= 50 %"))),
     Panel("(d) multi-target tracking error", "OSPA (p=2, c=10) [m]", (("ospa", None),)),
     Panel("(e) targets downed", "share of targets", (("downed", None),)),
     Panel("(f) time to down a target", "step of the fail-safe", (("time_to_down", None),)),
@@ -223,12 +228,13 @@ def airborne_shares(classes: np.ndarray, downed_at: list[int | None]) -> list[fl
 
 def swarm_record(quality: dict, classes: np.ndarray, ospa: np.ndarray, downed_at: list[int | None],
                  incidents: list[int], transmit_w: float, step_s: float, solve_s: float,
-                 steps: dict[str, np.ndarray]) -> dict[str, Any]:
+                 steps: dict[str, np.ndarray], ceiling: list[float | None]) -> dict[str, Any]:
     """A trial's record from its track quality (:func:`trackjam.metrics.multi.multi_track_quality`)
     and per-step classes (T, K) (:func:`trackjam.metrics.multi.target_classes`), its (T, 3) OSPA
-    series (total, localisation, cardinality), each target's step of downing and each agent's
-    incidents."""
+    series (total, localisation, cardinality), each target's step of downing, each agent's
+    incidents and each target's clairvoyant-chaser ceiling (:mod:`trackjam.metrics.ceiling`)."""
     shares = [s for s in quality["held_share"] if s is not None]
+    reach = [c for c in ceiling if c is not None]
     airborne = [s for s in airborne_shares(classes, downed_at) if not math.isnan(s)]
     n_det = quality["detectable_steps_total"]
     downed = [d for d in downed_at if d is not None]
@@ -236,6 +242,8 @@ def swarm_record(quality: dict, classes: np.ndarray, ospa: np.ndarray, downed_at
     return {
         "held_share": float(np.mean(shares)) if shares else math.nan,
         "held50_share": float(np.mean([s >= 0.5 for s in shares])) if shares else math.nan,
+        "ceiling_share": float(np.mean(reach)) if reach else math.nan,
+        "ceiling50_share": float(np.mean([c >= 0.5 for c in reach])) if reach else math.nan,
         "held_airborne_share": float(np.mean(airborne)) if airborne else math.nan,
         "missed_share": (n_det - quality["held_steps_total"]) / n_det if n_det else math.nan,
         "false_tracks_per_step": quality["false_tracks"] / T,
@@ -251,6 +259,7 @@ def swarm_record(quality: dict, classes: np.ndarray, ospa: np.ndarray, downed_at
         "solve_s_mean": float(solve_s),
         "targets": {
             "held_share": [_nan(s) for s in quality["held_share"]],
+            "ceiling_share": [_nan(c) for c in ceiling],
             "detectable_steps": [float(v) for v in quality["detectable_steps"]],
             "downed_at": [_nan(d) for d in downed_at],
         },
@@ -270,7 +279,7 @@ def _swarm_run(scenario) -> dict[str, Any]:
     classes = target_classes(*truth_and_estimates(r.tables, s["ids"]), s["gate_m"])[0]
     ospa = np.stack([st["ospa"], st["ospa_loc"], st["ospa_card"]], axis=1)
     return swarm_record(s, classes, ospa, s["downed_at"], s["jamming_incidents"], s["transmit_w_mean"],
-                        s["step_s_mean"], s["solve_s_mean"], {"t": st["t"], "tracks": st["tracks"]})
+                        s["step_s_mean"], s["solve_s_mean"], {"t": st["t"], "tracks": st["tracks"]}, s["ceiling_share"])
 
 
 def one_target_estimates(steps: dict[str, np.ndarray]) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
@@ -300,7 +309,8 @@ def _one_target_run(scenario) -> dict[str, Any]:
     ospa = ospa_series(truth, reports, c=m.ospa_cutoff, p=m.ospa_order)
     return swarm_record(quality, classes, ospa, [s["downed_at"]], s["jamming_incidents"], s["transmit_w_mean"],
                         s["step_s_mean"], s["solve_s_mean"],
-                        {"t": r.steps["t"], "tracks": np.array([len(lab) for lab, _ in reports])})
+                        {"t": r.steps["t"], "tracks": np.array([len(lab) for lab, _ in reports])},
+                        [s["ceiling_share"]])
 
 
 def swarm_trial(scenario) -> dict[str, Any]:

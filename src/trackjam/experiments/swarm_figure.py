@@ -1,5 +1,5 @@
 """The swarm experiment's figure: each panel's metric against the number of targets K, one line
-per team size N with its 95 % interval as a band, and the K = 1 cells of the one-target engine
+per team size N with its 95 % interval as a band (a panel's further series, the ceiling, dashed), and the K = 1 cells of the one-target engine
 as hollow markers with their intervals beside K = 1.
 
 A band is clipped at the panel's floor (no negative shares, metres or steps), and a share's at 1.
@@ -55,6 +55,8 @@ def swarm_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
             low, high = band(m, [_num(r[f"{stem}_ci95"]) for r in cells], panel.floor, ceiling)
             ax.plot(x, m, "o-", color=colours[n], label=f"N = {n}")
             ax.fill_between(x, low, high, color=colours[n], alpha=0.15, linewidth=0)
+            for reference_stem, _ in panel.series[1:]:  # a reference (the ceiling): dashed, no band
+                ax.plot(x, [_num(r[f"{reference_stem}_mean"]) for r in cells], "--", color=colours[n], linewidth=1)
         for i, (n, cells) in enumerate(reference.items()):
             m = [_num(r[f"{stem}_mean"]) for r in cells]
             low, high = band(m, [_num(r[f"{stem}_ci95"]) for r in cells], panel.floor, ceiling)
@@ -63,6 +65,9 @@ def swarm_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
             ax.errorbar(x, m, yerr=err, fmt="o", mfc="white", color=colours[n], capsize=2,
                         label="one-target engine" if i == 0 else None)
         ax.set_title(panel.title, fontsize=10)
+        if len(panel.series) > 1:
+            ax.text(0.02, 0.02, "; ".join(label for _, label in panel.series[1:] if label), transform=ax.transAxes,
+                    fontsize=7, color="0.3")
         ax.set_ylabel(panel.ylabel)
         ax.set_xlabel("targets K")
         ax.set_xticks(ks)

@@ -78,3 +78,94 @@ def clairvoyant_ceiling(
     n = int(detectable.sum())
     share = int((detectable & (nearest <= d)).sum()) / n if n else None
     return Ceiling(share=share, d=float(d), nearest=nearest, positions=positions)
+
+
+# Several targets (ours, issue 12): the same chasers, each step first shared out so that every
+# present target has a chaser of its own.
+
+
+def team_goals(u: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Which present target each of N agents at ``u`` (N, 3) chases this step: the (agent,
+    target) pairs are taken in order of distance, each time the nearest pair whose agent is free
+    and whose target has no chaser yet (ties by agent, then target index), until every present
+    target has one or no agent is free; the other agents chase their nearest present target.
+    ``targets`` (K, 3), NaN rows for absent targets. Returns (N,) target indices, -1 (hover)
+    when no target is present. With one target every agent chases it, as :func:`chase`."""
+    u = np.asarray(u, dtype=float).reshape(-1, 3)
+    targets = np.asarray(targets, dtype=float).reshape(-1, 3)
+    goals = np.full(len(u), -1, dtype=np.int64)
+    live = np.flatnonzero(np.isfinite(targets).all(axis=1))
+    if not len(live):
+        return goals
+    d = np.linalg.norm(u[:, None, :] - targets[None, live, :], axis=2)  # (N, L)
+    taken = np.zeros(len(live), dtype=bool)
+    for flat in np.argsort(d, axis=None, kind="stable"):
+        j, i = divmod(int(flat), len(live))
+        if goals[j] < 0 and not taken[i]:
+            goals[j], taken[i] = live[i], True
+            if taken.all():
+                break
+    free = goals < 0
+    goals[free] = live[np.argmin(d[free], axis=1)]
+    return goals
+
+
+def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, high) -> np.ndarray:
+    """Positions (T, N, 3) of N agents that start at ``initial`` (N, 3) and at each step t move at
+    most ``max_step`` [m] straight toward the true position of the target :func:`team_goals`
+    gives them (``truth`` (T, K, 3), NaN rows while a target is absent; with none present they
+    hover), clipped to the box [low, high]. With K = 1 it is :func:`chase`."""
+    if not max_step >= 0:
+        raise ValueError(f"max_step must be >= 0 m, got {max_step}")
+    truth = np.asarray(truth, dtype=float)
+    if truth.ndim != 3 or truth.shape[2] != 3:
+        raise ValueError(f"truth must have shape (T, K, 3), got {truth.shape}")
+    u = np.array(initial, dtype=float).reshape(-1, 3)
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    out = np.empty((len(truth), len(u), 3))
+    for t, x in enumerate(truth):
+        goals = team_goals(u, x)
+        moving = goals >= 0
+        gap = x[goals[moving]] - u[moving]
+        dist = np.linalg.norm(gap, axis=1, keepdims=True)
+        frac = np.minimum(1.0, max_step / np.where(dist > 0, dist, 1.0))
+        u[moving] = np.clip(u[moving] + frac * gap, low, high)
+        out[t] = u
+    return out
+
+
+@dataclass(frozen=True)
+class TeamCeiling:
+    shares: list[float | None]  # per target: detectable steps with a chaser within d, over its detectable steps
+    d: float  # [m]
+    nearest: np.ndarray  # (T, K) distance of the nearest chaser to each target [m]; NaN while absent
+    positions: np.ndarray  # (T, N, 3) chasers' positions after each step's move [m]
+    total: float | None  # over all targets' detectable steps
+
+    def summary(self) -> dict:
+        """summary.json keys: ``ceiling_share`` (per target, None for one never detectable),
+        ``ceiling_share_total`` (over all targets' detectable steps) and ``ceiling_d_m`` [m]."""
+        return {"ceiling_share": self.shares, "ceiling_share_total": self.total, "ceiling_d_m": self.d}
+
+
+def team_ceiling(truth: np.ndarray, detectable: np.ndarray, initial: np.ndarray, max_step: float, low, high,
+                 d: float = NEAR) -> TeamCeiling:
+    """The several-target ceiling: ``truth`` (T, K, 3) true positions (NaN while absent),
+    ``detectable`` (T, K) present and not occluded; the rest as :func:`clairvoyant_ceiling`, which
+    it equals for K = 1. A reference, not a bound: sharing the chasers out otherwise can do better
+    for one target at another's cost."""
+    if not d > 0:
+        raise ValueError(f"d must be > 0 m, got {d}")
+    truth = np.asarray(truth, dtype=float)
+    detectable = np.asarray(detectable, dtype=bool)
+    if truth.ndim != 3 or truth.shape[2] != 3 or detectable.shape != truth.shape[:2]:
+        raise ValueError(f"need truth (T, K, 3) and detectable (T, K), got {truth.shape} and {detectable.shape}")
+    if np.any(detectable & ~np.isfinite(truth).all(axis=2)):
+        raise ValueError("a detectable step has no true position")
+    positions = team_chase(truth, initial, max_step, low, high)
+    nearest = np.linalg.norm(positions[:, :, None, :] - truth[:, None, :, :], axis=3).min(axis=1)  # (T, K)
+    close = detectable & (nearest <= d)
+    n = detectable.sum(axis=0)
+    shares = [int(c) / int(k) if k else None for c, k in zip(close.sum(axis=0), n)]
+    total = int(close.sum()) / int(n.sum()) if n.sum() else None
+    return TeamCeiling(shares=shares, d=float(d), nearest=nearest, positions=positions, total=total)

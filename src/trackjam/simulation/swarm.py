@@ -366,5 +366,6 @@ class SwarmSimulation:
         b = self.c.base
         tables = self.log.columns()
         summary = swarm_summary(tables, self.log.ids, name=b.name, seed=b.seed, solver=b.plan.solver,
-                                n_agents=b.n_agents, gate=b.gate, downed_at=self.truth.downed_at)
+                                n_agents=b.n_agents, gate=b.gate, downed_at=self.truth.downed_at,
+                                initial=b.initial_positions, max_step=b.max_step, low=b.low, high=b.high)
         return SwarmResult(self.scenario, tables, summary)

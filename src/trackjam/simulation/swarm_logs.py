@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 import trackjam
+from trackjam.metrics.ceiling import team_ceiling
 from trackjam.metrics.multi import multi_track_quality
 from trackjam.simulation.schema import conform
 from trackjam.simulation.swarm_schema import SWARM_TABLES
@@ -82,11 +83,17 @@ def truth_and_estimates(tables: dict, ids: list[str]) -> tuple[np.ndarray, list[
 
 
 def swarm_summary(tables: dict, ids: list[str], *, name: str, seed: int, solver: str, n_agents: int, gate: float,
-                  downed_at: list[int | None]) -> dict:
-    """The swarm run's closing figures (README, "A run with several targets")."""
+                  downed_at: list[int | None], initial: np.ndarray, max_step: float, low, high) -> dict:
+    """The swarm run's closing figures (README, "A run with several targets"), with the team's
+    clairvoyant-chaser ceiling on the run's own truth (:func:`trackjam.metrics.ceiling.team_ceiling`:
+    agents that start at ``initial`` and move ``max_step`` a step inside [low, high])."""
     steps, agents = tables["steps"], tables["agents"]
     incidents = agents["jammed"].reshape(-1, n_agents).sum(axis=0)
     truth, est = truth_and_estimates(tables, ids)
+    tg = tables["targets"]
+    T, K = len(steps["t"]), len(ids)
+    present = np.stack([tg[f"truth_{a}"] for a in "xyz"], axis=1).reshape(T, K, 3)
+    ceiling = team_ceiling(present, tg["detectable"].reshape(T, K), initial, max_step, low, high)
     return {
         "name": name,
         "seed": seed,
@@ -106,4 +113,5 @@ def swarm_summary(tables: dict, ids: list[str], *, name: str, seed: int, solver:
         "downed_at": list(downed_at),
         "targets_downed": sum(d is not None for d in downed_at),
         **multi_track_quality(truth, est, gate, ids),
+        **ceiling.summary(),
     }
