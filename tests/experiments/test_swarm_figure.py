@@ -59,11 +59,12 @@ def test_the_ceiling_is_a_dashed_line_per_team_size_in_the_panels_that_name_it()
     with_reference = {p.title: p.series[1][0] for p in e.panels if len(p.series) > 1}
     assert set(with_reference) == {"(a) held share per target", "(c) targets held on >= 50 % of their steps"}
     for ax, panel in zip(axes, e.panels):
-        dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+        dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--" and len(ln.get_xdata())]
         if panel.title not in with_reference:
             assert not dashed
             continue
         assert len(dashed) == 4  # one per N, through that N's swarm-engine cells
+        assert ax.get_legend() is not None and dict(zip(*ax.get_legend_handles_labels()[::-1])).get(panel.series[1][1])
         want = {"ceiling": lambda k, n: 0.9 - 0.1 * k, "ceiling50": lambda k, n: 0.8 - 0.01 * n}[with_reference[panel.title]]
         for ln, n in zip(dashed, (3, 4, 5, 6)):
             np.testing.assert_allclose(ln.get_ydata(), [want(k, n) for k in (1, 2, 3, 4)])

@@ -149,10 +149,10 @@ def swarm_fields(draw: SwarmDraw, one_target: bool = False) -> dict[str, Any]:
 # ours, several targets: each metric against K, one line per N (experiments/swarm_figure.py)
 SWARM_PANELS = (
     Panel("(a) held share per target", "share of detectable steps",
-          (("held", None), ("ceiling", "dashed: clairvoyant chasers within 8 m"))),
+          (("held", None), ("ceiling", "ceiling: clairvoyant chasers within 8 m"))),
     Panel("(b) held share while airborne (until downed)", "share of detectable steps", (("held_airborne", None),)),
     Panel("(c) targets held on >= 50 % of their steps", "share of targets",
-          (("held50", None), ("ceiling50", "dashed: the chasers' ceiling >= 50 %"))),
+          (("held50", None), ("ceiling50", "the chasers' ceiling >= 50 %"))),
     Panel("(d) multi-target tracking error", "OSPA (p=2, c=10) [m]", (("ospa", None),)),
     Panel("(e) targets downed", "share of targets", (("downed", None),)),
     Panel("(f) time to down a target", "step of the fail-safe", (("time_to_down", None),)),

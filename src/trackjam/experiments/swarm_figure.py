@@ -65,9 +65,10 @@ def swarm_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
             ax.errorbar(x, m, yerr=err, fmt="o", mfc="white", color=colours[n], capsize=2,
                         label="one-target engine" if i == 0 else None)
         ax.set_title(panel.title, fontsize=10)
-        if len(panel.series) > 1:
-            ax.text(0.02, 0.02, "; ".join(label for _, label in panel.series[1:] if label), transform=ax.transAxes,
-                    fontsize=7, color="0.3")
+        for _, label in panel.series[1:]:  # the references' key, in the legend
+            ax.plot([], [], "--", color="0.4", linewidth=1, label=label)
+        if ax is not axes[0] and len(panel.series) > 1:
+            ax.legend(fontsize=7, handles=ax.get_lines()[-(len(panel.series) - 1):], loc="lower left")
         ax.set_ylabel(panel.ylabel)
         ax.set_xlabel("targets K")
         ax.set_xticks(ks)
