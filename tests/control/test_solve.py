@@ -54,6 +54,16 @@ def test_a_bad_time_budget_is_one_line_naming_the_key(value, words):
     assert "\n" not in str(info.value) and "control.time_limit_s" in str(info.value) and words in str(info.value)
 
 
+@pytest.mark.parametrize("value, words", [("-1", "greater than or equal to 0"), ("1.5", "integer"),
+                                          ("1e13", "less than or equal to"), ("true", "integer")])
+def test_a_bad_node_budget_is_one_line_naming_the_key(value, words):
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError) as info:
+        load_scenario("paper-fig3", [f"control.node_limit={value}"])
+    assert "\n" not in str(info.value) and "control.node_limit" in str(info.value) and words in str(info.value)
+
+
 def test_the_configuration_offers_exactly_the_registered_solvers():
     import typing
 

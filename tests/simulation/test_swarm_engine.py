@@ -280,6 +280,14 @@ def test_under_share_scans_every_agent_updates_on_every_teammates_scan(share, mo
         assert [shape[0] for _, shape in others] == [r.agents["measurements"][k] for k in mates]
 
 
+def test_the_assignment_search_stops_at_the_node_budget():
+    capped = simulate(two("control.node_limit=1", "control.time_limit_s=3600", solver="exact"))
+    free = simulate(two("control.time_limit_s=3600", solver="exact"))
+    planned = capped.steps["mode"] != "hover"
+    assert planned.any() and not capped.steps["optimal"][planned].any()
+    assert free.steps["optimal"][free.steps["mode"] != "hover"].all()
+
+
 def test_the_swarm_presets_list_their_targets():
     from trackjam.config import preset_names, scenario_to_yaml
 

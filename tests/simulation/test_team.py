@@ -241,6 +241,23 @@ def test_an_exact_search_out_of_time_logs_its_certified_gap():
     assert np.all(r.steps["gap"][stopped] > 0)
 
 
+def test_a_node_budget_stops_the_same_searches_in_every_run():
+    """control.node_limit: the search stops after that many nodes, whatever the clock says, so a
+    run repeats exactly; without it the same steps are searched to the proven optimum."""
+    six = [[30, 30, 30], [20, 10, 10], [10, 15, 15], [25, 25, 12], [15, 28, 22], [28, 12, 26]]
+    base = FAST[1:] + [f"agents.initial={six}", "control.solver=exact", "control.time_limit_s=3600", "steps=2"]
+    capped = [simulate(load_scenario("paper-fig3", base + ["control.node_limit=20"])) for _ in range(2)]
+    tracking = capped[0].steps["mode"] == "track"
+    stopped = ~capped[0].steps["optimal"] & tracking
+    assert stopped.any() and np.all(capped[0].steps["gap"][stopped] > 0)
+    for col in ("optimal", "gap", "objective"):
+        np.testing.assert_array_equal(capped[0].steps[col], capped[1].steps[col])
+    for col in ("level_index", "x", "y", "z"):
+        np.testing.assert_array_equal(capped[0].agents[col], capped[1].agents[col])
+    free = simulate(load_scenario("paper-fig3", base))
+    assert np.all(free.steps["optimal"][free.steps["mode"] == "track"])
+
+
 @pytest.mark.parametrize("loss, others", [(0.0, 2), (1.0, 0)])
 def test_sharing_scans_updates_each_filter_with_every_scan_it_received(monkeypatch, loss, others):
     """fusion.share: scans: each agent's update gets its teammates' scans of the step (none when

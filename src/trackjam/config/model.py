@@ -448,6 +448,12 @@ class Control(_Model):
         description="`exact`: wall-time budget of one step's search [s] (ours); when it runs out the best plan "
         "found is used and the solution reports its certified gap to the optimum",
     )
+    node_limit: Integer(0, 10**12) = Field(
+        0,
+        description="`exact`: budget of one search in search nodes (ours); 0: none. Unlike `time_limit_s` it stops "
+        "a search at the same plan on any machine under any load: for runs that must repeat exactly, set it and a "
+        "`time_limit_s` long enough that the node budget always runs out first",
+    )
     plan_over: Literal["point", "belief"] = Field(
         "point",
         description="what Eq. (12)'s Xi is evaluated at: `point` (the paper: x_bar) or `belief` (ours: Xi averaged over "

@@ -43,12 +43,12 @@ class Proposal:
 
 def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Sequence[np.random.Generator],
                  samples: int, iterations: int, neighbours: int, threads: int = 1,
-                 time_limit_s: float | None = 1.0) -> list[tuple[Solution, float]]:
+                 time_limit_s: float | None = 1.0, node_limit: int = 0) -> list[tuple[Solution, float]]:
     """The plan each searching agent (problem row ``rows[k]``, stream ``rngs[k]``) finds, with
     the value it announces (GRASP: its search's own value, which ranks the plans as the paper's
     all-apply-the-best does)."""
     if solver != "grasp":
-        sol = solve(problem, solver, list(rngs), time_limit_s=time_limit_s)
+        sol = solve(problem, solver, list(rngs), time_limit_s=time_limit_s, node_limit=node_limit)
         return [(sol, sol.objective) for _ in rows]
     neigh, n_neigh = neighbour_lists(problem, neighbours)
     N = problem.n_agents

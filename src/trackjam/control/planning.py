@@ -31,6 +31,7 @@ class PlanSettings:
     threads: int
     fallback: str  # "hover" | "search"
     time_limit_s: float | None = 1.0  # exact's budget per search [s]
+    node_limit: int = 0  # exact's budget per search in search nodes; 0: none
     belief_samples: int = 0  # control.plan_over: belief -> samples per agent; 0: plan at the point x_bar
     belief_spread: float | None = None  # control.belief_spread: the belief only while a heard spread exceeds it [m]
 

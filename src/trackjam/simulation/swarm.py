@@ -326,7 +326,7 @@ class SwarmSimulation:
         problem = build_assignment(positions, x_bar, b.displacements, b.antenna, b.low, b.high,
                                    min(p.at_least, n), p.constraints, self.c.team_objective)
         options = SolverOptions(samples=p.samples, iterations=p.iterations, neighbours=p.neighbours,
-                                threads=p.threads, time_limit_s=p.time_limit_s)
+                                threads=p.threads, time_limit_s=p.time_limit_s, node_limit=p.node_limit)
         sol = solve_assignment(problem, p.solver, [a.plan_rng for a in self.agents], options)
         return dict(mode="search" if all(a.search for a in aims) else "track", move=np.asarray(sol.move, dtype=np.int64),
                     level=np.asarray(sol.level, dtype=np.int64), serve=np.asarray(sol.target, dtype=np.int64),

@@ -221,7 +221,7 @@ class Team:
                 problem = problem.guarded(len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
                                  [self.agents[j].plan_rng for j in members], plan.samples, plan.iterations,
-                                 plan.neighbours, plan.threads, _remaining(plan.time_limit_s, t0))
+                                 plan.neighbours, plan.threads, _remaining(plan.time_limit_s, t0), plan.node_limit)
             mode = "search" if searching else "track"
             for j, (sol, value) in zip(members, found):
                 n = len(rows)
