@@ -20,7 +20,7 @@ from trackjam.experiments.definitions import (
     swarm_experiment,
     swarm_scenario,
 )
-from trackjam.experiments.swarm import DEFAULT_GRID, airborne_shares, draw_swarm, parse_grid, swarm_record
+from trackjam.experiments.swarm import DEFAULT_GRID, NODE_LIMIT, airborne_shares, draw_swarm, parse_grid, swarm_record
 from trackjam.experiments.trials import BALL_RADIUS_M
 from trackjam.metrics.multi import HELD, MISSED, UNDETECTABLE, multi_track_quality
 
@@ -103,7 +103,10 @@ def test_the_ball_around_a_target_in_a_corner_is_cut_to_the_area():
 def test_every_cell_is_swarm3_with_its_targets_landing_when_jammed():
     # the experiment keeps the cue at rest, as its published results were measured, and its
     # filters expect the targets' fail-safe
-    preset = load_scenario("swarm-3", overrides=["filter.cue.velocity=zero", "filter.response={action: land}"])
+    # and its exact searches stop at a node budget, never at the clock, so a sweep repeats under any load
+    preset = load_scenario("swarm-3", overrides=["filter.cue.velocity=zero", "filter.response={action: land}",
+                                                 f"control.node_limit={NODE_LIMIT}", "control.time_limit_s=3600"])
+    assert NODE_LIMIT > 0
     ss = _scenarios(k=1, seed=4)
     for label, s in ss.items():
         for section in ("antenna", "sensor", "filter", "fusion", "control"):

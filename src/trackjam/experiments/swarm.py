@@ -43,6 +43,7 @@ from trackjam.metrics.multi import HELD, UNDETECTABLE, multi_track_quality, ospa
 DEFAULT_GRID: tuple[tuple[int, ...], tuple[int, ...]] = ((1, 2, 3, 4), (3, 4, 5, 6))  # (K values, N values)
 MAX_GRID_TARGETS = 8  # beyond it a cell no longer fits the machine (and the swarm engine plans at 4 aims)
 MAX_GRID_AGENTS = 12
+NODE_LIMIT = 2_000_000  # exact's budget per search in the sweep [search nodes]
 RESPONSE = {"action": "land"}  # the rest is the configuration's default: -40 dB for 3 steps, 2 m/step
 _SWARM, _TARGET, _AGENT = 2, 0, 1  # spawn-key entries of the swarm draw (0 and 1 are trials.py's)
 
@@ -179,7 +180,10 @@ def swarm_experiment(grid: str | None = None) -> Experiment:
         preset="swarm-3",
         # the cue at rest, as the README's results were measured (the preset cues velocities since);
         # the filters expect the fail-safe the targets have (filter.response: estimation/failsafe.py)
-        base_settings={"filter.cue.velocity": "zero", "filter.response": dict(RESPONSE)},
+        # exact's budget in search nodes, not wall time, so that a sweep repeats exactly under any
+        # load (2 million nodes: about the 1 s budget on this machine's hardest K = 3..4 steps)
+        base_settings={"filter.cue.velocity": "zero", "filter.response": dict(RESPONSE),
+                       "control.node_limit": NODE_LIMIT, "control.time_limit_s": 3600.0},
         trial=swarm_trial,
         figure_style="lines",
         shown=SWARM_SHOWN,
