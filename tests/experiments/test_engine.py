@@ -12,6 +12,8 @@ import threading
 import time
 
 import pytest
+
+from trackjam.experiments.definitions import get_experiment
 from sweep_helpers import ENV, SWEEP, failing_trial, free_port, kill, start, wait_for_files
 
 from trackjam.errors import ConfigError
@@ -147,6 +149,13 @@ def test_resuming_into_a_folder_of_another_experiment_is_refused(tmp_path):
         run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "seed": 8})
     with pytest.raises(ConfigError, match="different experiment"):
         run_experiment("solvers", workers=1, out=tmp_path, **SWEEP)
+    # the same experiment, whose own settings have changed since the folder's trials were run
+    meta = tmp_path / "experiment.json"
+    params = json.loads(meta.read_text())
+    assert params["settings"] == get_experiment("constraints").base_settings
+    meta.write_text(json.dumps({**params, "settings": {"control.solver": "grasp"}}))
+    with pytest.raises(ConfigError, match=r"different experiment \(settings: \{'control.solver': 'grasp'\} there, \{\} now\)"):
+        run_experiment("constraints", workers=1, out=tmp_path, **SWEEP)
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     with pytest.raises(ConfigError, match="not empty"):

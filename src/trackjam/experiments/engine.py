@@ -102,6 +102,8 @@ def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, over
         "steps": steps,
         "seed": seed,
         "overrides": list(overrides),
+        # the experiment's own settings on its preset: a folder run under other ones is not resumed
+        "settings": dict(experiment.base_settings),
         "trial_function": f"{trial.__module__}.{trial.__qualname__}",
         "trackjam_version": trackjam.__version__,
     }
