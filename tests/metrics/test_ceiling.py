@@ -205,6 +205,7 @@ def test_with_one_target_the_team_ceiling_is_the_chasers_ceiling(seed):
     one = clairvoyant_ceiling(truth, detectable, initial, 5.0, LOW, HIGH)
     team = team_ceiling(truth[:, None], detectable[:, None], initial, 5.0, LOW, HIGH)
     np.testing.assert_array_equal(team.positions, one.positions)
+    np.testing.assert_allclose(team.positions, reference_chase(truth, initial, 5.0, LOW, HIGH), atol=1e-9)
     np.testing.assert_array_equal(team.nearest[:, 0], one.nearest)
     assert team.shares == [one.share] and team.total == one.share
 

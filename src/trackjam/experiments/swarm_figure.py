@@ -1,6 +1,6 @@
 """The swarm experiment's figure: each panel's metric against the number of targets K, one line
-per team size N with its 95 % interval as a band (a panel's further series, the ceiling, dashed), and the K = 1 cells of the one-target engine
-as hollow markers with their intervals beside K = 1.
+per team size N with its 95 % interval as a band (a panel's further series, the ceiling, dashed),
+and the K = 1 cells of the one-target engine as hollow markers with their intervals beside K = 1.
 
 A band is clipped at the panel's floor (no negative shares, metres or steps), and a share's at 1.
 """
@@ -65,10 +65,10 @@ def swarm_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
             ax.errorbar(x, m, yerr=err, fmt="o", mfc="white", color=colours[n], capsize=2,
                         label="one-target engine" if i == 0 else None)
         ax.set_title(panel.title, fontsize=10)
-        for _, label in panel.series[1:]:  # the references' key, in the legend
-            ax.plot([], [], "--", color="0.4", linewidth=1, label=label)
-        if ax is not axes[0] and len(panel.series) > 1:
-            ax.legend(fontsize=7, handles=ax.get_lines()[-(len(panel.series) - 1):], loc="lower left")
+        # the references' key, in the legend
+        keys = [ax.plot([], [], "--", color="0.4", linewidth=1, label=label)[0] for _, label in panel.series[1:]]
+        if ax is not axes[0] and keys:
+            ax.legend(fontsize=7, handles=keys, loc="lower left")
         ax.set_ylabel(panel.ylabel)
         ax.set_xlabel("targets K")
         ax.set_xticks(ks)

@@ -36,22 +36,8 @@ class Ceiling:
 def chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, high) -> np.ndarray:
     """Positions (T, N, 3) of N agents that start at ``initial`` (N, 3) and, at each step t,
     move at most ``max_step`` [m] straight toward ``truth[t]`` (T, 3; rows with NaN: the target
-    is absent and they hover), clipped to the box [low, high]."""
-    if not max_step >= 0:
-        raise ValueError(f"max_step must be >= 0 m, got {max_step}")
-    truth = np.asarray(truth, dtype=float).reshape(-1, 3)
-    u = np.array(initial, dtype=float).reshape(-1, 3)
-    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
-    out = np.empty((len(truth), len(u), 3))
-    for t, x in enumerate(truth):
-        if np.isfinite(x).all():
-            gap = x - u
-            dist = np.linalg.norm(gap, axis=1, keepdims=True)
-            # moving the whole gap when it is shorter than a step lands exactly on the target
-            frac = np.minimum(1.0, max_step / np.where(dist > 0, dist, 1.0))
-            u = np.clip(u + frac * gap, low, high)
-        out[t] = u
-    return out
+    is absent and they hover), clipped to the box [low, high]: :func:`team_chase` with one target."""
+    return team_chase(np.asarray(truth, dtype=float).reshape(-1, 1, 3), initial, max_step, low, high)
 
 
 def clairvoyant_ceiling(
@@ -66,18 +52,11 @@ def clairvoyant_ceiling(
     """The chaser's ceiling on one truth trajectory: ``truth`` (T, 3) true positions per step
     (NaN while absent), ``detectable`` (T,) the target is present and not occluded, ``initial``
     (N, 3) the agents' positions at t = 0, ``max_step`` the largest radial step [m]
-    (``max(agents.radial_steps)``), ``low``, ``high`` the area's corners, ``d`` [m]."""
-    if not d > 0:
-        raise ValueError(f"d must be > 0 m, got {d}")
-    truth = np.asarray(truth, dtype=float).reshape(-1, 3)
-    detectable = np.asarray(detectable, dtype=bool)
-    if np.any(detectable & ~np.isfinite(truth).all(axis=1)):
-        raise ValueError("a detectable step has no true position")
-    positions = chase(truth, initial, max_step, low, high)
-    nearest = np.linalg.norm(positions - truth[:, None, :], axis=2).min(axis=1)
-    n = int(detectable.sum())
-    share = int((detectable & (nearest <= d)).sum()) / n if n else None
-    return Ceiling(share=share, d=float(d), nearest=nearest, positions=positions)
+    (``max(agents.radial_steps)``), ``low``, ``high`` the area's corners, ``d`` [m]:
+    :func:`team_ceiling` with one target."""
+    truth = np.asarray(truth, dtype=float).reshape(-1, 1, 3)
+    team = team_ceiling(truth, np.asarray(detectable, dtype=bool).reshape(-1, 1), initial, max_step, low, high, d)
+    return Ceiling(share=team.shares[0], d=team.d, nearest=team.nearest[:, 0], positions=team.positions)
 
 
 # Several targets (ours, issue 12): the same chasers, each step first shared out so that every
@@ -114,7 +93,7 @@ def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, hig
     """Positions (T, N, 3) of N agents that start at ``initial`` (N, 3) and at each step t move at
     most ``max_step`` [m] straight toward the true position of the target :func:`team_goals`
     gives them (``truth`` (T, K, 3), NaN rows while a target is absent; with none present they
-    hover), clipped to the box [low, high]. With K = 1 it is :func:`chase`."""
+    hover), clipped to the box [low, high]. :func:`chase` is its K = 1 case."""
     if not max_step >= 0:
         raise ValueError(f"max_step must be >= 0 m, got {max_step}")
     truth = np.asarray(truth, dtype=float)
@@ -128,6 +107,7 @@ def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, hig
         moving = goals >= 0
         gap = x[goals[moving]] - u[moving]
         dist = np.linalg.norm(gap, axis=1, keepdims=True)
+        # moving the whole gap when it is shorter than a step lands exactly on the target
         frac = np.minimum(1.0, max_step / np.where(dist > 0, dist, 1.0))
         u[moving] = np.clip(u[moving] + frac * gap, low, high)
         out[t] = u
@@ -152,7 +132,7 @@ def team_ceiling(truth: np.ndarray, detectable: np.ndarray, initial: np.ndarray,
                  d: float = NEAR) -> TeamCeiling:
     """The several-target ceiling: ``truth`` (T, K, 3) true positions (NaN while absent),
     ``detectable`` (T, K) present and not occluded; the rest as :func:`clairvoyant_ceiling`, which
-    it equals for K = 1. A reference, not a bound: sharing the chasers out otherwise can do better
+    is its K = 1 case. A reference, not a bound: sharing the chasers out otherwise can do better
     for one target at another's cost."""
     if not d > 0:
         raise ValueError(f"d must be > 0 m, got {d}")

@@ -207,7 +207,8 @@ def build(s: Scenario) -> Components:
             solver=c.solver, at_least=c.at_least, constraints=c.constraints, samples=c.grasp.samples,
             iterations=c.grasp.iterations, neighbours=c.grasp.neighbours,
             threads=c.grasp.threads or default_threads(s.n_agents), fallback=c.fallback,
-            time_limit_s=c.time_limit_s, node_limit=int(c.node_limit), belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
+            time_limit_s=c.time_limit_s, node_limit=int(c.node_limit),
+            belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
             belief_spread=None if c.belief_spread is None else float(c.belief_spread),
         ),
         team=TeamSettings(

@@ -68,13 +68,21 @@ class SwarmLog:
         return out
 
 
+def true_positions(tables: dict, ids: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The targets' true positions (T, K, 3), NaN while absent, and whether each is detectable (T, K)."""
+    tg = tables["targets"]
+    T, K = len(tables["steps"]["t"]), len(ids)
+    return (np.stack([tg[f"truth_{a}"] for a in "xyz"], axis=1).reshape(T, K, 3),
+            np.asarray(tg["detectable"], dtype=bool).reshape(T, K))
+
+
 def truth_and_estimates(tables: dict, ids: list[str]) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
     """The logs as :mod:`trackjam.metrics.multi` takes them: the truth (T, K, 3), NaN where a
     target is not detectable, and per step the reported tracks as (labels, positions)."""
-    tg, tr = tables["targets"], tables["tracks"]
-    T, K = len(tables["steps"]["t"]), len(ids)
-    truth = np.stack([tg[f"truth_{a}"] for a in "xyz"], axis=1).reshape(T, K, 3).copy()
-    truth[~tg["detectable"].reshape(T, K)] = np.nan
+    tr = tables["tracks"]
+    truth, detectable = true_positions(tables, ids)
+    truth = truth.copy()
+    truth[~detectable] = np.nan
     est = []
     for t in tables["steps"]["t"]:
         rows = tr["t"] == t
@@ -90,10 +98,7 @@ def swarm_summary(tables: dict, ids: list[str], *, name: str, seed: int, solver:
     steps, agents = tables["steps"], tables["agents"]
     incidents = agents["jammed"].reshape(-1, n_agents).sum(axis=0)
     truth, est = truth_and_estimates(tables, ids)
-    tg = tables["targets"]
-    T, K = len(steps["t"]), len(ids)
-    present = np.stack([tg[f"truth_{a}"] for a in "xyz"], axis=1).reshape(T, K, 3)
-    ceiling = team_ceiling(present, tg["detectable"].reshape(T, K), initial, max_step, low, high)
+    ceiling = team_ceiling(*true_positions(tables, ids), initial, max_step, low, high)
     return {
         "name": name,
         "seed": seed,

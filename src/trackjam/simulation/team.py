@@ -295,7 +295,6 @@ class Team:
                 a.filter.reset_to(fused.existence, fused.mean, fused.cov, visible=fused.visible)
         return report
 
-
     def note_jamming(self, points: np.ndarray, levels_w: np.ndarray) -> None:
         """``filter.response``: every working agent's filter weighs the step's transmissions of
         the whole team (each agent adopted a plan holding every teammate's move, level and aim)."""
