@@ -104,7 +104,10 @@ def _actions(**changed):
     [
         (None, r"^actions: expected a dict \{agent: \[move, level\]\}, got NoneType$"),
         ([np.array([0, 0])] * 3, r"^actions: expected a dict .*got list$"),
-        (_actions(agent_0=np.array([-1, 0])), r"^agent_0: action .* is outside the action space"),
+        (_actions(agent_0=np.array([-1, 0])),  # an array is shown as the list it holds, as a list would be
+         r"^agent_0: action \[-1, 0\] is outside the action space MultiDiscrete\(\[\d+, \d+\]\) "
+         r"\(\[move, level\] indices\)$"),
+        (_actions(agent_0=[-1, 0]), r"^agent_0: action \[-1, 0\] is outside the action space MultiDiscrete"),
         (_actions(agent_1=np.array([0, N_LEVELS])), r"^agent_1: action .* is outside the action space"),
         (_actions(agent_2=np.array([0.5, 0])), r"^agent_2: action .* is outside the action space"),
         (_actions(agent_0=np.array([np.nan, 0])), r"^agent_0: action .* is outside the action space"),

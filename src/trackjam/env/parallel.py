@@ -38,6 +38,11 @@ MAX_SEED = 2**63 - 1  # the scenario's seed bound
 NOT_STARTED = "not started"
 
 
+def _shown(action) -> str:
+    """An action as the message shows it: a numpy array as the list it holds (``[79, 0]``)."""
+    return repr(action.tolist()) if isinstance(action, np.ndarray) else repr(action)
+
+
 def _check_replay_path(path) -> None:
     """Refuse, at construction, a ``replay_path`` that ``render()`` could not write."""
     if not isinstance(path, (str, os.PathLike)):
@@ -153,7 +158,7 @@ class TrackjamParallelEnv(ParallelEnv):
             a = np.asarray(actions[name])
             if a.shape != (2,) or a.dtype.kind not in "iu" or not space.contains(a.astype(space.dtype)):
                 raise ValueError(
-                    f"{name}: action {actions[name]!r} is outside the action space "
+                    f"{name}: action {_shown(actions[name])} is outside the action space "
                     f"MultiDiscrete({space.nvec.tolist()}) ([move, level] indices)"
                 )
             moves[j], levels[j] = int(a[0]), int(a[1])
