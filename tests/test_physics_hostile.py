@@ -59,6 +59,9 @@ CASES = [
     ("paper-fig3", ["filter.visibility={hide: 1, reappear: 0}", "target.occlusions=[[1, 4]]", CUED]),
     ("paper-fig3", ["control.lead=10", "control.horizon=100", "target.initial=[20, 20, 20, 1000, -1000, 1000]"]),
     ("paper-fig3", [ALL_DOWN]),
+    # the mode's grid at radii the schema allows: 1e7 cells a side overflowed its int64 count
+    ("pursuit", ["filter.mode={radius: 1e-5, mass: 0.2}", "target.occlusions=[]"]),
+    ("pursuit", ["filter.mode.radius=1e-300", "target.occlusions=[[2, 3]]"]),
     ("swarm-3", ["steps=3", "sensor.noise_std=[1e-3, 1e-6, 1e-6]", "antenna.p_d_max=1", "sensor.clutter_rate=0"]),
     ("swarm-3", ["steps=3", "agents.initial=[[20, 20, 20], [20, 20, 20]]", "control.at_least=2",
                  "targets=[{initial: [20, 20, 20, 0, 0, 0], accel_var: 0}, {initial: [20, 20, 20, 0, 0, 0], accel_var: 0}]"]),
@@ -131,3 +134,39 @@ def test_just_past_a_bound_is_refused_in_one_line_naming_the_key(overrides, key)
         load_scenario("paper-fig3", SMALL + overrides)
     message = str(err.value)
     assert "\n" not in message and key in message
+
+
+@pytest.mark.parametrize("radius", [5e-324, 1e-300, 1e-12, 1e-9, 1e-5, 1e-3, 5.0, 1e5])
+@pytest.mark.parametrize("spread", [1e-3, 1.0, 100.0, 1e5])
+def test_the_mode_kernel_and_its_numpy_twin_agree_at_any_radius(radius, spread):
+    # the grid's cell count was an int64 product: past 2^63 it wrapped negative and passed the cap
+    from trackjam.estimation.bernoulli import MODE_CELL_SHARE, mode_cluster_reference, mode_moments
+    from trackjam.estimation.kernels import MODE_MAX_CELLS, kernel_mode_cluster
+
+    rng = np.random.default_rng(7)
+    X = np.c_[rng.normal(50, spread, (2000, 3)), rng.normal(0, 1, (2000, 3))]
+    w = rng.exponential(size=2000)
+    w /= w.sum()
+    for cell in (MODE_CELL_SHARE * radius, 0.0):  # 0.5 x 5e-324 rounds to a cell of 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            c, m, inside = kernel_mode_cluster(X, w, radius, cell)
+            c_ref, m_ref, inside_ref = mode_cluster_reference(X, w, radius, cell)
+        np.testing.assert_allclose(c, c_ref, rtol=1e-9, atol=1e-9)
+        assert m == pytest.approx(m_ref, rel=1e-9, abs=1e-12)
+        np.testing.assert_array_equal(inside, inside_ref)
+        assert np.all(np.isfinite(c)) and 0.0 <= m <= 1.0 + 1e-12
+    moments = mode_moments(X, w, radius, 0.2)
+    assert moments is None or all(np.all(np.isfinite(a)) for a in moments)
+    assert MODE_MAX_CELLS == 1 << 21
+
+
+def test_a_radius_below_the_particles_spacing_keeps_the_papers_moments():
+    from trackjam.estimation.bernoulli import mode_moments
+
+    X = np.zeros((10, 6))
+    X[:, :3] = 1e5  # one point, far from the origin: 1e5 / 8e-301 was no int64 cell index
+    w = np.full(10, 0.1)
+    assert mode_moments(X, w, 1e-300, 0.2) is None  # nothing lies strictly within 1e-300 m of the centre
+    mean, _ = mode_moments(X, w, 1e-9, 0.2)
+    np.testing.assert_allclose(mean[:3], 1e5)

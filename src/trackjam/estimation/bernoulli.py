@@ -62,6 +62,7 @@ from trackjam.estimation.birth import (
 )
 from trackjam.estimation.kernels import (
     MODE_MAX_CELLS,
+    MODE_MAX_INDEX,
     MODE_SHIFTS,
     kernel_cv_predict,
     kernel_logsumexp,
@@ -156,12 +157,15 @@ def mode_cluster_reference(X: np.ndarray, w: np.ndarray, radius: float, cell: fl
     (centre, weight within ``radius`` of it, that mask)."""
     P = np.asarray(X, dtype=float)[:, :3]
     w = np.asarray(w, dtype=float)
-    while True:
-        lo = np.floor(P.min(axis=0) / cell).astype(np.int64)
-        dims = np.floor(P.max(axis=0) / cell).astype(np.int64) - lo + 1
-        if np.prod(dims) <= MODE_MAX_CELLS:
-            break
-        cell *= 2.0
+    cell = max(cell, 5e-324)
+    with np.errstate(over="ignore", invalid="ignore"):  # a tiny cell: inf - inf, the loop doubles it
+        while True:  # counted in float64, as the kernel does: an int64 product overflows for tiny cells
+            low, high = np.floor(P.min(axis=0) / cell), np.floor(P.max(axis=0) / cell)
+            if (np.prod(high - low + 1.0) <= MODE_MAX_CELLS and np.abs([low, high]).max() <= MODE_MAX_INDEX) \
+                    or cell == np.inf:
+                break
+            cell *= 2.0
+    lo, dims = low.astype(np.int64), (high - low + 1.0).astype(np.int64)
     cells = np.floor(P / cell).astype(np.int64) - lo
     idx = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
     best = int(np.argmax(np.bincount(idx, weights=w, minlength=int(np.prod(dims)))))

@@ -311,14 +311,19 @@ def kernel_two_scan_velocity(P, V, mu, chol, Linv, log_det, sd, v_b, dt, blind, 
 
 
 MODE_MAX_CELLS = 1 << 21  # the mode's grid: its cell doubles until the particles' box holds at most this many
+MODE_MAX_INDEX = 2.0**52  # and until every cell index is an exact integer of float64 (and of int64)
 MODE_SHIFTS = 4  # mean-shift steps from the heaviest cell (filter.mode)
 
 
 @njit(cache=True)
 def _mode_grid(X, cell):
     """The grid of :func:`kernel_mode_cluster`: cell size (doubled from ``cell`` until the box of
-    the particles' positions holds at most MODE_MAX_CELLS cells), the box's lowest cell index and
-    its cell counts."""
+    the particles' positions holds at most MODE_MAX_CELLS cells and every cell index lies within
+    +-MODE_MAX_INDEX), the box's lowest cell index and its cell counts.
+
+    The counts are multiplied in float64: a tiny ``filter.mode.radius`` (1e-5 m) over a box of
+    100 m gives 1e7 cells a side, whose product overflowed int64 to a negative count that passed
+    the cap; the index bound keeps a cell index of 1e5 m / 1e-300 m from overflowing too."""
     lo = np.empty(3, dtype=np.int64)
     dims = np.empty(3, dtype=np.int64)
     mn = np.empty(3)
@@ -330,13 +335,22 @@ def _mode_grid(X, cell):
         for a in range(3):
             mn[a] = min(mn[a], X[i, a])
             mx[a] = max(mx[a], X[i, a])
+    low = np.empty(3)
+    high = np.empty(3)
+    cell = max(cell, 5e-324)  # a cell of 0 (0.5 x 5e-324 rounds to it) would never grow
     while True:
-        total = 1
+        total = 1.0
+        index = 0.0
         for a in range(3):
-            lo[a] = int(math.floor(mn[a] / cell))
-            dims[a] = int(math.floor(mx[a] / cell)) - lo[a] + 1
-            total *= dims[a]
-        if total <= MODE_MAX_CELLS:
+            low[a] = math.floor(mn[a] / cell)
+            high[a] = math.floor(mx[a] / cell)
+            total *= high[a] - low[a] + 1.0
+            index = max(index, abs(low[a]), abs(high[a]))
+        # past an infinite cell nothing shrinks further: non-finite positions, which no filter makes
+        if (total <= MODE_MAX_CELLS and index <= MODE_MAX_INDEX) or cell == math.inf:
+            for a in range(3):
+                lo[a] = int(low[a])
+                dims[a] = int(high[a] - low[a] + 1.0)
             return cell, lo, dims
         cell *= 2.0
 
