@@ -221,6 +221,75 @@ def test_a_scheduler_that_cannot_be_used_is_one_line_before_anything_is_written(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.fixture()
+def http_port(tmp_path):
+    """A plain HTTP server on 127.0.0.1, as `python3 -m http.server` (what a ws:// scheduler address
+    may point at by mistake), serving an empty folder."""
+    import functools
+    from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+
+    class Quiet(SimpleHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+    (tmp_path / "www").mkdir()
+    server = ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Quiet, directory=str(tmp_path / "www")))
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield server.server_address[1]
+    server.shutdown()
+    server.server_close()
+
+
+@pytest.fixture()
+def hang_up_port():
+    """A port on 127.0.0.1 that accepts each connection and closes it at once."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+
+    def serve():
+        while True:
+            try:
+                server.accept()[0].close()
+            except OSError:
+                return
+
+    threading.Thread(target=serve, daemon=True).start()
+    yield server.getsockname()[1]
+    server.close()
+
+
+@pytest.mark.parametrize(
+    "scheme, port, words",
+    [
+        ("ws", "http_port", "Non-websocket response"),
+        ("wss", "hang_up_port", ""),
+    ],
+)
+def test_a_client_that_fails_to_connect_leaves_one_line_and_no_hang(tmp_path, request, scheme, port, words):
+    # the half-built dask Client's __del__ waited 10 s at exit, then printed "Exception ignored in:
+    # <function Client.__del__>" and a traceback under the error line
+    address = f"{scheme}://127.0.0.1:{request.getfixturevalue(port)}"
+    line = _one_line(_experiment(address, tmp_path / "out"))
+    assert line.startswith(f"trackjam: error: cannot reach the Dask scheduler at {address}: ") and words in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_failed_client_is_closed_on_the_way_out(http_port):
+    import gc
+    import time
+
+    from trackjam.errors import ConfigError
+    from trackjam.experiments.backends import open_executor
+
+    started = time.monotonic()
+    with pytest.raises(ConfigError, match="Non-websocket response"):
+        with open_executor(None, f"ws://127.0.0.1:{http_port}"):
+            pass
+    gc.collect()  # a client left half-built would close here, for 10 s
+    assert time.monotonic() - started < 8
+
+
 def test_an_experiment_of_one_trial_prints_its_means_without_nan(tmp_path):
     from typer.testing import CliRunner
 

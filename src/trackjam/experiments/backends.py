@@ -206,6 +206,20 @@ def _check_handshake(payload: bytes) -> None:
         raise ValueError("a handshake without the scheduler's Python version")
 
 
+def _discard(client) -> None:
+    """Close a client whose construction failed, so that nothing is left for its ``__del__``:
+    its loop thread stopped and its status ``closed`` (``__del__`` then does nothing)."""
+    try:
+        client.close(timeout=CONNECT_TIMEOUT_S)
+    except Exception:  # noqa: BLE001 - a half-built client may lack what close() reads
+        pass
+    try:
+        client.status = "closed"
+        client._loop_runner.stop()
+    except Exception:  # noqa: BLE001 - failed before its loop runner existed
+        pass
+
+
 def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
     try:
         from distributed import Client
@@ -219,9 +233,14 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
         if Security().get_connection_args("client").get("ssl_context") is None:
             raise ConfigError(f"--scheduler {address}: TLS needs a client certificate in Dask's configuration "
                               "(distributed.comm.tls.*); none is set")
+    # built in two steps to keep a handle on it: a constructor that fails (ws:// to an HTTP
+    # server, wss:// to a port that hangs up) leaves a half-built client whose __del__, at exit,
+    # waited 10 s and printed a traceback ("Exception ignored in: <function Client.__del__>")
+    client = Client.__new__(Client)
     try:
-        client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        client.__init__(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
     except Exception as err:  # noqa: BLE001 - Dask's own refusals vary: a TypeError for TLS without a security configuration
+        _discard(client)
         msg = " ".join(str(err).split()) or type(err).__name__
         raise ConfigError(f"cannot reach the Dask scheduler at {address}: {msg}") from None
     try:
