@@ -91,7 +91,9 @@ def test_a_path_name_past_the_systems_limit_is_one_line(tmp_path, args):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("args", [["show-config", "swarm-3"], ["presets"], ["validate", "paper-fig3"]])
+@pytest.mark.parametrize("args", [["show-config", "swarm-3"], ["presets"], ["validate", "paper-fig3"],
+                                  # written before any command runs: they were OSError tracebacks, exit 1
+                                  ["--version"], ["--help"], ["bench", "--help"], ["run", "--help"], []])
 def test_an_output_on_a_full_disk_is_one_line(args):
     # /dev/full: every write fails with ENOSPC, as a redirect to a full disk does
     with open("/dev/full", "w") as full:
@@ -132,3 +134,101 @@ def test_only_a_system_error_caused_by_ctrl_c_counts_as_an_interrupt():
         _numba_interrupt()
     assert interrupted(info.value) and interrupted(KeyboardInterrupt())
     assert not interrupted(SystemError("a real bug")) and not interrupted(ValueError())
+
+
+LONG = "9" * 5000  # past Python's 4300 digits: int() raised ValueError inside the parsers
+
+
+def test_an_integer_of_thousands_of_digits_in_a_set_is_one_line():
+    line = _one_line(_trackjam("validate", "paper-fig3", "--set", f"steps={LONG}"))
+    assert line == f"trackjam: error: --set steps={LONG[:51]}...: steps: integer too large (5000 digits)"
+
+
+@pytest.mark.parametrize("name, text, where", [
+    ("long.yaml", f"steps: {LONG}\n", "steps: integer too large (5000 digits)"),
+    ("long.toml", f"steps = {LONG}\n", "steps: integer too large (5000 digits, line 1)"),
+])
+def test_an_integer_of_thousands_of_digits_in_a_file_is_one_line(tmp_path, name, text, where):
+    f = tmp_path / name
+    f.write_text(text)
+    assert _one_line(_trackjam("validate", str(f))) == f"trackjam: error: {f}: {where}"
+
+
+def test_a_grid_of_thousands_of_digits_is_refused(tmp_path):
+    line = _one_line(_trackjam("experiment", "swarm", "--grid", f"{LONG}x3", "--out", str(tmp_path / "e")))
+    assert line == f"trackjam: error: --grid: targets '{LONG[:37]}...' must lie within 1..8, low to high"
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("seed", ["99999999999999999999999", str(2**63), "-1"])
+def test_an_experiment_seed_out_of_range_is_refused_as_run_refuses_it(tmp_path, seed):
+    # SeedSequence took any size: run refused 2^63, experiment ran it
+    line = _one_line(_trackjam("experiment", "table1", "--trials", "1", "--steps", "3", "--seed", seed,
+                               "--out", str(tmp_path / "e")))
+    assert line == f"trackjam: error: --seed {seed}: must be an integer in [0, 2^63 - 1]"
+    assert not (tmp_path / "e").exists()
+
+
+def test_a_malformed_flow_mapping_in_a_set_is_named_as_yaml(tmp_path):
+    line = _one_line(_trackjam("run", "paper-fig3", "--set", "filter.cue={existence: 1", "--out", str(tmp_path / "r")))
+    assert line == ("trackjam: error: --set filter.cue={existence: 1: not valid YAML: expected ',' or '}', "
+                    "but got '<stream end>' (column 14)")
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_scenario_file_of_another_extension_is_refused(tmp_path):
+    f = tmp_path / "scenario.txt"
+    f.write_text("steps: 3\n")
+    line = _one_line(_trackjam("validate", str(f)))
+    assert line == (f"trackjam: error: {f}: unknown extension '.txt': a scenario file ends in .yaml, .yml or .toml "
+                    "(any case)")
+
+
+def test_planning_over_a_belief_too_large_for_a_step_is_refused_before_the_run(tmp_path):
+    agents = "agents.initial=[" + ",".join("[%d,%d,30]" % (5 + i % 6 * 15, 5 + i // 6 * 15) for i in range(32)) + "]"
+    sets = ["--set", "steps=1", "--set", agents, "--set", "control.belief_samples=256", "--set",
+            "control.belief_spread=null", "--set", "target.occlusions=[]"]
+    for command in (["validate", "pursuit"], ["run", "pursuit", "--no-figures", "--out", str(tmp_path / "r")]):
+        line = _one_line(_trackjam(*command, *sets))
+        assert line == ("trackjam: error: --set control.belief_samples=256: control.belief_samples: one step would "
+                        "take about 8.4e+09 operations (belief), past the cap of 1e+09; lower control.belief_samples")
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("mode", ["filter.mode={radius: 1e-5, mass: 0.2}", "filter.mode.radius=1e-9"])
+def test_a_tiny_mode_radius_runs(tmp_path, mode):
+    # the mode's grid counted 1e7 cells a side in int64, overflowed, and numpy refused a negative size
+    sets = ["steps=3", "target.occlusions=[]", "filter.particles=300", "filter.birth_particles=60", mode]
+    r = _trackjam("run", "pursuit", *[a for item in sets for a in ("--set", item)], "--no-figures",
+                  "--out", str(tmp_path / "r"))
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert (tmp_path / "r" / "summary.json").is_file()
+
+
+def test_a_swarm_figure_with_a_long_target_id_writes_no_raw_warning(tmp_path):
+    ids = "targets=[{id: %s}, {id: b}, {id: c}]" % ("a" * 100)
+    r = _trackjam("run", "swarm-3", "--set", "steps=3", "--set", ids, "--set", "filter.particles=100",
+                  "--set", "filter.birth_particles=20", "--out", str(tmp_path / "r"))
+    assert r.returncode == 0 and r.stderr == "", r.stderr  # was matplotlib's "constrained_layout not applied"
+    assert (tmp_path / "r" / "run.png").is_file()
+
+
+def test_a_run_figure_of_many_agents_writes_no_raw_warning(tmp_path):
+    import warnings
+
+    from trackjam.config import load_scenario
+    from trackjam.simulation.build import figure_settings
+    from trackjam.simulation.loop import simulate
+    from trackjam.viz.figure import plot_run
+
+    agents = "agents.initial=[" + ",".join("[%d,%d,%d]" % (5 + i % 4 * 25, 5 + i // 4 % 4 * 25, 10 + i // 16 * 20)
+                                           for i in range(32)) + "]"
+    s = load_scenario("paper-fig3", ["steps=1", agents, "control.solver=greedy", "filter.particles=50",
+                                     "filter.birth_particles=10", "target.occlusions=[]", "agents.n_inclination=2",
+                                     "agents.n_azimuth=2", "agents.radial_steps=[1]"])
+    r = simulate(s)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        plot_run(r.steps, r.agents, figure_settings(s), tmp_path / "run.png")
+    assert [str(w.message) for w in caught] == []  # the legends of 32 agents left a panel no room
+    assert (tmp_path / "run.png").stat().st_size > 0

@@ -214,3 +214,165 @@ def test_the_swarm_log_estimate_covers_the_columns_a_run_holds():
     assert held <= estimate(s)["memory_logs"][0]
     # and not by orders of magnitude: the estimate is 4 times the rows' bytes
     assert estimate(s)["memory_logs"][0] < 40 * held
+
+
+# -- integers past Python's 4300 digits (int("9" * 5000) raises ValueError) -------------------
+
+LONG = "9" * 5000
+
+
+@pytest.mark.parametrize(
+    "item, message",
+    [
+        (f"steps={LONG}", "steps: integer too large (5000 digits)"),
+        (f"targets=[{{id: {LONG}}}]", "targets.0.id: integer too large (5000 digits)"),
+        (f"antenna.power_levels_db=[off, {LONG}]",
+         "antenna.power_levels_db: power level: integer too large (5000 digits)"),
+        (f"agents.initial=[[1, 2, -{LONG}]]", "agents.initial.0.2: integer too large (5000 digits)"),
+        # under the limit but past any float: math.isfinite(10**400) raised an OverflowError
+        (f"antenna.power_levels_db=[off, {'9' * 400}]",
+         "antenna.power_levels_db: power level an integer of 400 digits dBW lies outside [-200, 60] dBW"),
+        (f"targets=[{{id: {'9' * 400}}}]",
+         "targets.0.id: an integer id must lie within +-(2^63 - 1), got an integer of 400 digits"),
+    ],
+)
+def test_an_integer_of_thousands_of_digits_in_a_set_is_refused_naming_the_key(item, message):
+    base = "swarm-3" if "targets" in item else "paper-fig3"
+    assert _refused(base, [item]) == f"--set {item[:57]}...: {message}"
+
+
+def test_an_integer_of_thousands_of_digits_in_a_yaml_file_is_refused_naming_the_key(tmp_path):
+    f = tmp_path / "long.yaml"
+    f.write_text(f"steps: 3\nfilter:\n  particles: {LONG}\n")
+    assert _refused(str(f), []) == f"{f}: filter.particles: integer too large (5000 digits)"
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (f"steps = {LONG}\n", "steps: integer too large (5000 digits, line 1)"),
+        (f"steps = 3\n[filter]\nparticles = {LONG}\n", "filter.particles: integer too large (5000 digits, line 3)"),
+        (f'name = "x"\n[[targets]]\nid = {LONG}\n', "targets.id: integer too large (5000 digits, line 3)"),
+        (f"targets = [{{id = 1}}, {{id = {LONG}}}]\n", "targets: integer too large (5000 digits, line 1)"),
+        (f"[filter]\nparticles = 1_{LONG}\n", "filter.particles: integer too large (5001 digits, line 2)"),
+    ],
+)
+def test_an_integer_of_thousands_of_digits_in_a_toml_file_is_refused_naming_the_file_and_key(tmp_path, text, message):
+    f = tmp_path / "long.toml"
+    f.write_text(text)
+    assert _refused(str(f), []) == f"{f}: {message}"
+
+
+def test_an_integer_under_the_limit_is_still_an_integer(tmp_path):
+    f = tmp_path / "ok.yaml"
+    f.write_text("steps: 0000000000000000000000000000000000000000000000000003\n")
+    assert load_scenario(str(f)).steps == 3
+    assert load_scenario("paper-fig3", ["steps=1_0"]).steps == 10
+
+
+# -- --set values that are malformed YAML -------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "item, problem",
+    [
+        ("filter.cue={existence: 1", "expected ',' or '}', but got '<stream end>' (column 14)"),
+        ("filter.cue={existence: 1, existence: 0.5}", "duplicate key 'existence' (line 1)"),
+        ("agents.initial=[[1, 2, 3], [4, 5, 6]", "expected ',' or ']', but got '<stream end>' (column 22)"),
+        ("agents.initial= [[1, 2, 3]]]", "expected '<document start>', but found ']' (column 13)"),
+        ("filter.cue={? [a]: 1}", "a key must be a name, got a list (line 1)"),
+    ],
+)
+def test_a_set_value_that_is_malformed_yaml_says_so_naming_the_item(item, problem):
+    # they were read as text and refused as "filter.cue: Input should be a valid dictionary"
+    assert _refused("paper-fig3", [item]) == f"--set {item}: not valid YAML: {problem}"
+
+
+def test_a_long_malformed_set_item_is_shortened():
+    item = "agents.initial=[" + ", ".join(["[1, 2, 3]"] * 20)
+    message = _refused("paper-fig3", [item])
+    assert message.startswith(f"--set {item[:57]}...: not valid YAML: expected ',' or ']'") and len(message) < 200
+
+
+def test_a_set_value_that_is_not_yaml_and_not_a_flow_collection_is_still_text():
+    # "a: b: c" is no YAML: the value is that text, refused by the name's own rule
+    message = _refused("paper-fig3", ["name=a: b: c"])
+    assert message.startswith("--set name=a: b: c: name: 'a: b: c' is not a safe folder name")
+
+
+# -- scenario files by their extension ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["s.yaml", "s.yml", "s.YML", "s.Yaml", "s.YAML"])
+def test_a_yaml_file_is_read_whatever_the_case_of_its_extension(tmp_path, name):
+    f = tmp_path / name
+    f.write_text("steps: 3\n")
+    assert load_scenario(str(f)).steps == 3
+
+
+@pytest.mark.parametrize("name", ["s.toml", "s.TOML", "s.Toml"])
+def test_a_toml_file_is_read_whatever_the_case_of_its_extension(tmp_path, name):
+    f = tmp_path / name
+    f.write_text("steps = 3\n")
+    assert load_scenario(str(f)).steps == 3
+
+
+@pytest.mark.parametrize("name, what", [("s.txt", "unknown extension '.txt'"), ("s.json", "unknown extension '.json'"),
+                                        ("scenario", "no extension"), ("s.yaml.bak", "unknown extension '.bak'")])
+def test_a_file_of_another_extension_is_refused_naming_the_accepted_ones(tmp_path, name, what):
+    f = tmp_path / name
+    f.write_text("steps: 3\n")  # it was read as YAML without a word
+    assert _refused(str(f), []) == f"{f}: {what}: a scenario file ends in .yaml, .yml or .toml (any case)"
+
+
+def test_an_empty_file_is_empty_whatever_its_name(tmp_path):
+    f = tmp_path / "empty.txt"
+    f.write_text("")
+    assert _refused(str(f), []).startswith(f"{f}: is empty")
+    assert _refused("/dev/null", []).startswith("/dev/null: is empty")
+
+
+# -- planning over the belief (control.plan_over: belief) -----------------------------------------
+
+AGENTS_32 = "agents.initial=[" + ",".join("[%d,%d,30]" % (5 + i % 6 * 15, 5 + i // 6 * 15) for i in range(32)) + "]"
+
+
+def test_planning_over_a_belief_too_large_for_a_step_is_refused_naming_belief_samples():
+    # one step of this ran 88 s (exact, 32 agents x 256 points each) while validate said ok
+    items = ["steps=1", AGENTS_32, "control.belief_samples=256", "control.belief_spread=null", "target.occlusions=[]"]
+    assert _refused("pursuit", items) == (
+        "--set control.belief_samples=256: control.belief_samples: one step would take about 8.4e+09 operations "
+        "(belief), past the cap of 1e+09; lower control.belief_samples")
+
+
+def test_grasp_over_the_belief_costs_the_points_times_the_point_search():
+    # 3 agents x 256 points: each of GRASP's 10^6 joint samples is evaluated at 768 points (4 min a step)
+    assert _refused("paper-fig3", ["control.plan_over=belief", "control.belief_samples=256"]) == (
+        "--set control.belief_samples=256: control.belief_samples: one step would take about 6.9e+09 operations "
+        "(grasp), past the cap of 1e+09; lower control.belief_samples")
+    point = estimate(load_scenario("paper-fig3"))["work_grasp"][0]
+    belief = estimate(load_scenario("paper-fig3", ["control.plan_over=belief"]))["work_grasp"][0]
+    assert belief == 3 * 16 * point
+
+
+def test_the_belief_figures_grow_with_the_points_and_vanish_when_planning_at_the_point():
+    s = load_scenario("pursuit")
+    assert "work_belief" not in estimate(load_scenario("pursuit", ["control.plan_over=point"]))
+    small, large = (estimate(load_scenario("pursuit", [f"control.belief_samples={k}"]))["work_belief"][0]
+                    for k in (16, 64))
+    assert large == 4 * small and estimate(s)["work_belief"][1] == ("control.belief_samples", "agents.initial")
+
+
+@pytest.mark.parametrize("preset", ["pursuit", "paper-fig3", "swarm-3", "paper-fig3-literal"])
+def test_the_presets_pass_the_work_check(preset):
+    s = load_scenario(preset)
+    assert all(ops <= limits.MAX_STEP_WORK for name, (ops, _) in estimate(s).items() if name.startswith("work_"))
+
+
+def test_every_experiments_scenarios_pass_the_work_check():
+    from trackjam.experiments.definitions import EXPERIMENTS, get_experiment
+    from trackjam.experiments.engine import _plan
+
+    for name in EXPERIMENTS:
+        scenarios, _ = _plan(get_experiment(name), 2, 30, 0, [])  # built and validated, or ConfigError
+        assert scenarios

@@ -36,6 +36,13 @@ class _Cli(typer.Typer):
                 raise
             typer.echo("trackjam: interrupted", err=True)
             sys.exit(130)
+        except OSError as err:
+            # the help or the version (written before any command runs, so outside user_errors)
+            # on a full disk (`--help > /dev/full`): the same line as a command's output there
+            if err.filename is None and err.errno in (errno.ENOSPC, errno.EDQUOT):
+                typer.echo(f"trackjam: error: cannot write the output: {err.strerror}", err=True)
+                sys.exit(2)
+            raise
         sys.exit(rv if isinstance(rv, int) else 0)
 
 
@@ -117,10 +124,10 @@ def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
     from trackjam.config import load_scenario
     from trackjam.config.warnings import scenario_warnings
 
-    if seed is not None and not 0 <= seed <= 2**63 - 1:  # else the preset or file was blamed for it
-        from trackjam.errors import ConfigError
+    if seed is not None:  # checked here, else the preset or file was blamed for it
+        from trackjam.config.limits import check_seed
 
-        raise ConfigError(f"--seed {seed}: must be an integer in [0, 2^63 - 1]")
+        check_seed(seed)
     fields = {} if seed is None else {"seed": seed}
     s = load_scenario(scenario, overrides or [], **fields)
     for line in scenario_warnings(s):

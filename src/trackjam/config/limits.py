@@ -4,7 +4,8 @@ run on this machine without overflow, NaN or an allocation it cannot hold.
 The bounds are generous for drones (lengths up to 100 km, speeds up to 1000 m/s, powers between
 -200 and 60 dBW); the resource check estimates, from the scenario alone, the memory a run holds
 at once (particles x agents, the planning tables N x N x C x C, the logs) and the work of one
-step (particles x measurements x agents, GRASP samples x iterations x agents), and refuses a
+step (particles x measurements x agents, GRASP samples x iterations x agents, and planning over
+the belief: points x agents x candidates x levels), and refuses a
 scenario past half the machine's memory or past ``MAX_STEP_WORK`` operations a step, naming the
 key that grew it.
 """
@@ -48,7 +49,27 @@ _DEFAULTS = {
     "agents.initial": 3, "agents.radial_steps": 3, "agents.n_inclination": 8, "agents.n_azimuth": 8,
     "filter.particles": 10_000, "filter.birth_particles": 2000, "sensor.clutter_rate": 3.0,
     "steps": 30, "control.grasp.samples": 10_000, "control.grasp.iterations": 100, "targets": 3,
+    "control.belief_samples": 16,
 }
+# planning over the belief (control.plan_over: belief), measured on 3 to 32 agents and 48 to 8192
+# belief points S (up to control.belief_samples from each agent) at about 10 ns an operation:
+# tabulating p_D at every point, (S, N, C, L), costs about 20 operations an entry (0.4-0.9 us per
+# point, agent and candidate at L = 4 levels, the greedy choice over it 0.04 us an entry); the
+# exact solver, when its time budget runs out, bounds its open branches by a numpy pass per
+# point and depth, about 800 operations per point and agent squared (14 s of a 16 s step at
+# N = 32, S = 2048, time_limit_s = 1); a GRASP evaluation costs S times the point's
+BELIEF_TABLE_OPS = 20.0
+BELIEF_EXACT_OPS = 800.0
+
+
+MAX_SEED = 2**63 - 1  # the scenario's `seed`; numpy's generators take more, the logs' int64 columns do not
+
+
+def check_seed(seed: Any) -> None:
+    """Refuse (one line, naming --seed) a seed of a run or an experiment outside [0, 2^63 - 1]."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        shown = f"{seed}" if not isinstance(seed, int) or abs(seed) < 10**30 else "(an integer of more than 30 digits)"
+        raise ConfigError(f"--seed {shown}: must be an integer in [0, 2^63 - 1]")
 
 
 def check_name(name: str) -> None:
@@ -121,12 +142,24 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
         "work_filter": (N * (n + n_b) * (m + 1.0), particles + ("sensor.clutter_rate",)),
         "work_tables": (float(N * N * C * C), moves),
     }
-    if s.targets is not None and len(s.targets) > 1:
+    several = s.targets is not None and len(s.targets) > 1
+    if several:
         out.update(_swarm_estimate(s, N, C, L, m))
+    # planning over the belief (one target; the swarm engine refuses it): S points, each agent's
+    # control.belief_samples when every agent believes or searches
+    belief = s.control.plan_over == "belief" and not several
+    S = N * s.control.belief_samples if belief else 1
+    if belief:
+        keys = ("control.belief_samples", "agents.initial")
+        exact = BELIEF_EXACT_OPS * N if s.control.solver == "exact" else 0.0
+        # p_D at every point (S, N, C, L) and, for exact, its ranked copy and suffix maximum
+        out["memory_belief"] = (8.0 * S * N * C * L * (3 if s.control.solver == "exact" else 1), keys)
+        out["work_belief"] = (float(S) * N * (C * L * BELIEF_TABLE_OPS + exact), keys)
     if s.control.solver == "grasp":
         out["work_grasp"] = (
-            float(N) * s.control.grasp.samples * s.control.grasp.iterations * N,
-            ("control.grasp.samples", "control.grasp.iterations", "agents.initial"),
+            float(N) * s.control.grasp.samples * s.control.grasp.iterations * N * S,
+            ("control.grasp.samples", "control.grasp.iterations", "agents.initial")
+            + (("control.belief_samples",) if belief else ()),
         )
     return out
 

@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from trackjam.config.model import Scenario
+from trackjam.config.model import LongInteger, Scenario
 from trackjam.errors import ConfigError
 
 MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and stray binaries
@@ -29,8 +29,16 @@ MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would 
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML with two fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
-    string), and a key given twice in one mapping is an error instead of silently the last."""
+    """YAML with three fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
+    string), a key given twice in one mapping is an error instead of silently the last, and an
+    integer of more digits than Python converts (4300) is a :class:`LongInteger`, which the
+    model refuses naming its key, instead of a ValueError from inside the parser."""
+
+    def construct_yaml_int(self, node: yaml.ScalarNode) -> Any:
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError:  # "Exceeds the limit (4300 digits) for integer string conversion"
+            return LongInteger(sum(c.isdigit() for c in str(node.value)))
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen = set()
@@ -49,6 +57,7 @@ class _Loader(yaml.SafeLoader):
         return super().construct_mapping(node, deep)
 
 
+_Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
@@ -142,6 +151,11 @@ def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
     return None
 
 
+def _shortened(item: str) -> str:
+    """A ``--set`` item for a message: at most 60 characters."""
+    return item if len(item) <= 60 else item[:57] + "..."
+
+
 def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str, str] | None = None) -> Scenario:
     """Validate a mapping as a :class:`Scenario`, raising :class:`ConfigError` with one line.
 
@@ -156,7 +170,7 @@ def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str,
         problems = _errors(err)
         for key, msg in problems[:MAX_SHOWN]:
             item = _blamed(key, msg, overridden or {})
-            where = f"--set {item if len(item) <= 60 else item[:57] + '...'}" if item else source
+            where = f"--set {_shortened(item)}" if item else source
             by_source.setdefault(where, []).append(f"{key}: {msg}" if key else msg)
         more = f"; and {len(problems) - MAX_SHOWN} more problems" if len(problems) > MAX_SHOWN else ""
         raise ConfigError("; ".join(f"{where}: " + "; ".join(found) for where, found in by_source.items()) + more) from None
@@ -197,16 +211,62 @@ def _read_text(path: Path) -> str:
     return text
 
 
+class LongIntegerError(ValueError):
+    """A TOML text with an integer of more digits than Python converts; the message says where."""
+
+
 def _toml(text: str) -> Any:
-    return _parsed(tomllib.loads, text)
+    try:
+        return _parsed(tomllib.loads, text)
+    except tomllib.TOMLDecodeError:  # a ValueError too
+        raise
+    except ValueError:  # an integer past Python's 4300 digits, converted inside tomllib
+        where = _long_integer(text)
+        if where is None:
+            raise
+        raise LongIntegerError(where) from None
+
+
+_TOML_LONG = re.compile(r"(?<![\w.\"'])[0-9][0-9_]{4300,}")
+_TOML_TABLE = re.compile(r"^\s*\[\[?([^\]]+)\]\]?\s*(?:#.*)?$")
+_TOML_KEY = re.compile(r"^\s*([\w.\-\s\"']+?)\s*=")
+
+
+def _long_integer(text: str) -> str | None:
+    """Where the first integer of more than 4300 digits stands in a TOML text, as "KEY: integer
+    too large (N digits, line L)", KEY the dotted key of the last key line before it (with its
+    table), or None when there is none. A hint, not a parse: tomllib does not say where."""
+    m = _TOML_LONG.search(text)
+    if m is None:
+        return None
+    table, key = "", ""
+    for row in text[: m.start()].split("\n"):
+        if t := _TOML_TABLE.match(row):
+            table, key = t[1], ""
+        elif k := _TOML_KEY.match(row):
+            key = k[1]
+    name = ".".join(p.strip().strip("\"'") for p in f"{table}.{key}".split(".") if p.strip())
+    digits = sum(c.isdigit() for c in m[0])
+    line = text.count("\n", 0, m.start()) + 1
+    return f"{name + ': ' if name else ''}integer too large ({digits} digits, line {line})"
+
+
+YAML_SUFFIXES = (".yaml", ".yml")
+TOML_SUFFIXES = (".toml",)
 
 
 def _read_file(path: Path) -> dict:
     text = _read_text(path)
-    toml = path.suffix.lower() == ".toml"
+    suffix = path.suffix.lower()
+    if suffix not in YAML_SUFFIXES + TOML_SUFFIXES:  # a .txt or .json was read as YAML without a word
+        if not text:  # /dev/null is empty whatever its name
+            raise ConfigError(f"{path}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
+        what = f"unknown extension {path.suffix!r}" if path.suffix else "no extension"
+        raise ConfigError(f"{path}: {what}: a scenario file ends in .yaml, .yml or .toml (any case)")
+    toml = suffix in TOML_SUFFIXES
     try:
         data = _toml(text) if toml else _yaml(text)
-    except TooLarge as err:
+    except (TooLarge, LongIntegerError) as err:
         raise ConfigError(f"{path}: {err}") from None
     except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
@@ -221,12 +281,37 @@ def _read_file(path: Path) -> dict:
 
 
 def _parse_value(text: str) -> Any:
+    """A ``--set`` value read as YAML. A value that is not YAML is the text itself, except one
+    meant as a flow mapping or list (it starts with ``{`` or ``[``) and one the constructor
+    refuses (a key given twice or not a name, an unknown tag): those raise the YAMLError, as in a
+    file (read as text, they were refused as "not a valid dictionary", the problem unsaid)."""
     try:
         return _yaml(text)
     except TooLarge:
         raise
+    except yaml.constructor.ConstructorError:
+        raise
     except yaml.YAMLError:
+        if text.lstrip().startswith(("{", "[")):
+            raise
         return text
+
+
+def _yaml_problem(err: yaml.YAMLError) -> str:
+    """One line of a YAML error in a ``--set`` value: the problem and where in the value."""
+    if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
+        return " ".join(err.problem.split())  # ours name the key and its line, as in a file
+    problem = getattr(err, "problem", None)
+    if not problem:
+        return " ".join(str(err).split()) or type(err).__name__
+    mark = getattr(err, "problem_mark", None)
+    if mark is None:
+        where = ""
+    elif mark.line:  # a value of several lines
+        where = f" (line {mark.line + 1}, column {mark.column + 1})"
+    else:
+        where = f" (column {mark.column + 1})"
+    return " ".join(problem.split()) + where
 
 
 def set_dotted(data: dict, key: str, value: Any) -> None:
@@ -262,12 +347,14 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
     data = _deep_copy(data)
     for item in _items(overrides):
         if "=" not in item:
-            raise ConfigError(f"--set {item!r}: expected key=value")
+            raise ConfigError(f"--set {_shortened(item)!r}: expected key=value")
         key, _, value = item.partition("=")
         try:
             parsed = _parse_value(value)
         except TooLarge as err:
             raise ConfigError(f"--set {key.strip()}: {err}") from None
+        except yaml.YAMLError as err:
+            raise ConfigError(f"--set {_shortened(item)}: not valid YAML: {_yaml_problem(err)}") from None
         set_dotted(data, key, parsed)
     return data
 

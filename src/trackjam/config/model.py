@@ -34,8 +34,42 @@ from trackjam.config.limits import (
 )
 
 
+class LongInteger:
+    """An integer literal of more digits than Python converts to an int (4300, its guard against
+    quadratic conversions): the YAML reader gives this instead of failing inside the parser, and
+    every number of the model refuses it, naming its key."""
+
+    __slots__ = ("digits",)
+
+    def __init__(self, digits: int) -> None:
+        self.digits = digits
+
+    def __repr__(self) -> str:
+        return f"<an integer of {self.digits} digits>"
+
+    def problem(self) -> str:
+        return f"integer too large ({self.digits} digits)"
+
+
+def _digits(v: int) -> int:
+    """Decimal digits of ``v``, without a conversion Python refuses past 4300 digits."""
+    try:
+        return len(str(abs(v)))
+    except ValueError:
+        return int(abs(v).bit_length() * math.log10(2)) + 1
+
+
+def _shown(v: Any) -> str:
+    """``v`` for a message: an integer of many digits by its length, not its 4000 digits."""
+    if isinstance(v, numbers.Integral) and not isinstance(v, bool) and abs(v) >= 10**20:
+        return f"an integer of {_digits(v)} digits"
+    return str(v)
+
+
 def _number(v: Any) -> Any:
     # pydantic's lax mode reads True as 1 and "5" as 5: a value of the wrong kind is a mistake
+    if isinstance(v, LongInteger):
+        raise ValueError(v.problem())
     if isinstance(v, (bool, str, bytes)):
         raise ValueError(f"must be a number, got {type(v).__name__} {v!r}")
     if isinstance(v, float) and not math.isfinite(v):
@@ -46,6 +80,8 @@ def _number(v: Any) -> Any:
 
 
 def _integer(v: Any) -> Any:
+    if isinstance(v, LongInteger):
+        raise ValueError(v.problem())
     if isinstance(v, float) and v.is_integer() and abs(v) < 2**63:
         return int(v)
     if isinstance(v, (bool, str, bytes)) or not isinstance(v, numbers.Integral):
@@ -173,6 +209,8 @@ def _target_id(v: Any) -> Any:
     # reads as something else (True, 2.5)
     if v is None:
         return v
+    if isinstance(v, LongInteger):
+        raise ValueError(v.problem())
     if isinstance(v, str):
         if not 1 <= len(v) <= MAX_ID_CHARS or v != v.strip():
             raise ValueError(f"a text id must have 1 to {MAX_ID_CHARS} characters and no surrounding blanks, got {v!r}")
@@ -182,7 +220,7 @@ def _target_id(v: Any) -> Any:
     if isinstance(v, bool) or not isinstance(v, numbers.Integral):
         raise ValueError(f"an id is an integer or a text, got {type(v).__name__} {v!r}")
     if not abs(v) < 2**63:
-        raise ValueError(f"an integer id must lie within +-(2^63 - 1), got {v}")
+        raise ValueError(f"an integer id must lie within +-(2^63 - 1), got {_shown(v)}")
     return int(v)
 
 
@@ -220,15 +258,18 @@ def _parse_level(v: Any) -> float | None:
         return None
     if isinstance(v, bool):
         raise ValueError("a power level is a number in dBW or 'off'")
+    if isinstance(v, LongInteger):
+        raise ValueError(f"power level: {v.problem()}")
     if isinstance(v, str):
         try:
             v = float(v)
         except ValueError:
             raise ValueError(f"power level {v!r} is neither a number in dBW nor 'off'") from None
-    if not isinstance(v, (int, float)) or not math.isfinite(v):
+    if not isinstance(v, (int, float)) or (isinstance(v, float) and not math.isfinite(v)):
         raise ValueError(f"power level {v!r} must be a finite number in dBW or 'off'")
-    if not DBW_MIN <= v <= DBW_MAX:
-        raise ValueError(f"power level {v:g} dBW lies outside [{DBW_MIN:g}, {DBW_MAX:g}] dBW")
+    if not DBW_MIN <= v <= DBW_MAX:  # an int compares exactly: math.isfinite(10**400) overflowed
+        shown = _shown(v) if isinstance(v, int) else f"{v:g}"
+        raise ValueError(f"power level {shown} dBW lies outside [{DBW_MIN:g}, {DBW_MAX:g}] dBW")
     return float(v)
 
 

@@ -22,7 +22,7 @@ from typing import Any, Callable, Mapping
 
 import trackjam
 from trackjam.config import Scenario
-from trackjam.config.limits import check_trial_runs, check_workers, run_memory
+from trackjam.config.limits import check_seed, check_trial_runs, check_workers, run_memory
 from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
@@ -113,7 +113,7 @@ def read_parameters(meta: Path) -> dict:
     """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable."""
     try:
         params = json.loads(meta.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+    except (OSError, ValueError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer past 4300 digits
         reason = "empty" if meta.is_file() and meta.stat().st_size == 0 else type(err).__name__
         raise ConfigError(f"{meta}: unreadable ({reason}); remove it to start over, or choose another --out") from None
     if not isinstance(params, dict) or "experiment" not in params:
@@ -254,8 +254,7 @@ def run_experiment(
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
     if not isinstance(steps, int) or steps < 1:
         raise ConfigError(f"--steps must be a positive integer, got {steps!r}")
-    if not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"--seed must be a non-negative integer, got {seed!r}")
+    check_seed(seed)  # the range `run --seed` takes (SeedSequence would take any size)
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
     if workers is not None and scheduler:

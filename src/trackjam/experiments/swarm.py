@@ -67,18 +67,30 @@ SWARM_METRICS: tuple[Metric, ...] = (
 )
 
 
+def _whole(digits: str) -> int | float:
+    """The number ``digits`` writes; past 18 digits (leading zeros aside) infinity, as out of
+    range as it is: Python refuses to convert more than 4300."""
+    digits = digits.lstrip("0") or "0"
+    return int(digits) if len(digits) <= 18 else math.inf
+
+
+def _short(text: str) -> str:
+    """``text`` for a message: at most 40 characters."""
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _values(text: str, what: str, top: int) -> tuple[int, ...]:
     out: list[int] = []
     for part in text.split(","):
         m = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part, re.ASCII)
         if m is None:
-            raise ConfigError(f"--grid: {what} {text!r} is not a list of whole numbers or ranges (e.g. 1-4 or 3,5)")
-        a, b = int(m[1]), int(m[2] or m[1])
+            raise ConfigError(f"--grid: {what} {_short(text)!r} is not a list of whole numbers or ranges (e.g. 1-4 or 3,5)")
+        a, b = _whole(m[1]), _whole(m[2] or m[1])
         if not 1 <= a <= b <= top:
-            raise ConfigError(f"--grid: {what} {part.strip()!r} must lie within 1..{top}, low to high")
+            raise ConfigError(f"--grid: {what} {_short(part.strip())!r} must lie within 1..{top}, low to high")
         out += range(a, b + 1)
     if len(set(out)) != len(out):
-        raise ConfigError(f"--grid: {what} {text!r} lists a value twice")
+        raise ConfigError(f"--grid: {what} {_short(text)!r} lists a value twice")
     return tuple(sorted(out))
 
 
@@ -89,7 +101,7 @@ def parse_grid(text: str | None) -> tuple[tuple[int, ...], tuple[int, ...]]:
         return DEFAULT_GRID
     targets, sep, agents = text.strip().partition("x")
     if not sep or not targets or not agents:
-        raise ConfigError(f"--grid {text!r}: expected TARGETSxAGENTS, e.g. 1-4x3-6 or 2,3x5")
+        raise ConfigError(f"--grid {_short(text)!r}: expected TARGETSxAGENTS, e.g. 1-4x3-6 or 2,3x5")
     return _values(targets, "targets", MAX_GRID_TARGETS), _values(agents, "agents", MAX_GRID_AGENTS)
 
 

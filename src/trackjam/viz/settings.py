@@ -24,3 +24,9 @@ class FigureSettings:
     ospa_order: float  # p of OSPA
     ospa_cutoff: float  # c of OSPA [m]
     gate: float  # metrics.gate, track quality judged by the truth [m]
+
+
+# matplotlib's warning when a figure's panels leave no room for one of them (64 agents in the
+# legends, a 100-character target id): the figure is written all the same, and a raw warning is
+# no line of ours on stderr
+CONSTRAINED_LAYOUT_WARNING = "constrained_layout not applied"
