@@ -232,3 +232,24 @@ def test_a_run_figure_of_many_agents_writes_no_raw_warning(tmp_path):
         plot_run(r.steps, r.agents, figure_settings(s), tmp_path / "run.png")
     assert [str(w.message) for w in caught] == []  # the legends of 32 agents left a panel no room
     assert (tmp_path / "run.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("command", ["run", "validate"])
+def test_a_refused_command_prints_its_one_line_and_no_warning(tmp_path, command):
+    """Suspicious values (a 1 deg cone; for paper-fig3 an occlusion past the last step too) are
+    warned about only once the command is going ahead: a refused one prints its error alone."""
+    afile = tmp_path / "afile"
+    afile.write_text("mine\n")
+    extra = ["--out", str(afile)] if command == "run" else ["--set", "control.plan_over=belief"]
+    scenario = "paper-fig3" if command == "run" else "swarm-3"
+    r = _trackjam(command, scenario, "--set", "steps=3", "--set", "antenna.opening_angle_deg=1", *extra)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert len(r.stderr.splitlines()) == 1 and r.stderr.startswith("trackjam: error: "), r.stderr
+    assert afile.read_text() == "mine\n"
+
+
+def test_a_run_that_goes_ahead_still_warns(tmp_path):
+    r = _trackjam("run", "paper-fig3", "--set", "steps=2", "--set", "filter.particles=500",
+                  "--set", "filter.birth_particles=100", "--out", str(tmp_path / "run"), "--no-figures")
+    assert r.returncode == 0, r.stderr
+    assert "trackjam: warning: target.occlusions: [14, 17] reach past the last step (2)" in r.stderr.splitlines()

@@ -119,10 +119,11 @@ def interrupted(err: BaseException) -> bool:
     return False
 
 
-def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
-    """The validated scenario; its suspicious values are warned about, one line each on stderr."""
+def _load(scenario: str, overrides: list[str] | None, seed: int | None = None, warn: bool = True):
+    """The validated scenario; its suspicious values are warned about, one line each on stderr
+    (with ``warn=False`` the caller does so by :func:`_warn` once its other checks have passed,
+    so that a refused command prints its one error line and nothing else)."""
     from trackjam.config import load_scenario
-    from trackjam.config.warnings import scenario_warnings
 
     if seed is not None:  # checked here, else the preset or file was blamed for it
         from trackjam.config.limits import check_seed
@@ -130,9 +131,17 @@ def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
         check_seed(seed)
     fields = {} if seed is None else {"seed": seed}
     s = load_scenario(scenario, overrides or [], **fields)
+    if warn:
+        _warn(s)
+    return s
+
+
+def _warn(s) -> None:
+    """One line on stderr per suspicious but legal value of ``s``."""
+    from trackjam.config.warnings import scenario_warnings
+
     for line in scenario_warnings(s):
         typer.echo(f"trackjam: warning: {line}", err=True)
-    return s
 
 
 def _runnable(s) -> None:
@@ -177,8 +186,9 @@ def validate(
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
 ) -> None:
     """Check a scenario file; print `ok` or one line naming the key and the problem."""
-    s = _load(file, set_)
+    s = _load(file, set_, warn=False)
     _runnable(s)
+    _warn(s)
     typer.echo(f"ok: {s.name}, {s.n_agents} agents, {s.steps} steps")
 
 
@@ -224,12 +234,13 @@ def run(
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write run.png and replay.html."),
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
-    s = _load(scenario, set_, seed)
+    s = _load(scenario, set_, seed, warn=False)
     _runnable(s)
     out = out or Path("runs") / f"{s.name}-seed{s.seed}"
     from trackjam.simulation.output import check_out_dir
 
     check_out_dir(out, s)  # before any work: nothing is computed for a folder we cannot use
+    _warn(s)  # after every refusal: a refused run prints its one line and nothing else
 
     from rich.console import Console
     from rich.markup import escape
