@@ -39,8 +39,8 @@ class _Cli(typer.Typer):
         except OSError as err:
             # the help or the version (written before any command runs, so outside user_errors)
             # on a full disk (`--help > /dev/full`): the same line as a command's output there
-            if err.filename is None and err.errno in (errno.ENOSPC, errno.EDQUOT):
-                typer.echo(f"trackjam: error: cannot write the output: {err.strerror}", err=True)
+            if err.filename is None and _full_disk(err):
+                typer.echo(f"trackjam: error: {_full_disk(err)}", err=True)
                 sys.exit(2)
             raise
         sys.exit(rv if isinstance(rv, int) else 0)
@@ -71,6 +71,11 @@ def _main(
     """Cooperative tracking and radio-jamming of a rogue drone by a team of pursuer drones."""
 
 
+def _full_disk(err: OSError) -> str | None:
+    """The line for an output that a full disk refused (`> /dev/full`), else None."""
+    return f"cannot write the output: {err.strerror}" if err.errno in (errno.ENOSPC, errno.EDQUOT) else None
+
+
 def _fail(message: str) -> None:
     typer.echo(f"trackjam: error: {message}", err=True)
     raise typer.Exit(2)
@@ -93,8 +98,8 @@ def user_errors(fn: Callable) -> Callable:
             # any other OSError without a file name is not the user's
             if err.filename is not None:
                 _fail(f"{err.filename}: {err.strerror or err}")
-            if err.errno in (errno.ENOSPC, errno.EDQUOT):
-                _fail(f"cannot write the output: {err.strerror}")
+            if _full_disk(err):
+                _fail(_full_disk(err))
             raise
         except (KeyboardInterrupt, SystemError) as err:
             if not interrupted(err):  # a SystemError that no Ctrl-C caused

@@ -1,6 +1,11 @@
 """Errors a user can fix: the CLI prints them as one line and exits with status 2."""
 
 
+def shortened(text: str, limit: int) -> str:
+    """``text`` for a one-line message: at most ``limit`` characters, cut with "..."."""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 class TrackjamError(Exception):
     """Base of the errors that name a user's mistake."""
 

@@ -17,7 +17,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from trackjam.config.model import LongInteger, Scenario
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 
 MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and stray binaries
 # values of a scenario once YAML's aliases are expanded: a 1 MB file holds fewer than this, but
@@ -25,6 +25,7 @@ MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and s
 # validating them would never end
 MAX_VALUES = 1_000_000
 MAX_DEPTH = 50  # levels of nesting; the readers after the parser (copies, validation) recurse
+SET_SHOWN = 60  # characters of a --set item a message shows
 MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would be a line of 600 kB)
 
 
@@ -151,11 +152,6 @@ def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
     return None
 
 
-def _shortened(item: str) -> str:
-    """A ``--set`` item for a message: at most 60 characters."""
-    return item if len(item) <= 60 else item[:57] + "..."
-
-
 def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str, str] | None = None) -> Scenario:
     """Validate a mapping as a :class:`Scenario`, raising :class:`ConfigError` with one line.
 
@@ -170,7 +166,7 @@ def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str,
         problems = _errors(err)
         for key, msg in problems[:MAX_SHOWN]:
             item = _blamed(key, msg, overridden or {})
-            where = f"--set {_shortened(item)}" if item else source
+            where = f"--set {shortened(item, SET_SHOWN)}" if item else source
             by_source.setdefault(where, []).append(f"{key}: {msg}" if key else msg)
         more = f"; and {len(problems) - MAX_SHOWN} more problems" if len(problems) > MAX_SHOWN else ""
         raise ConfigError("; ".join(f"{where}: " + "; ".join(found) for where, found in by_source.items()) + more) from None
@@ -347,14 +343,14 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
     data = _deep_copy(data)
     for item in _items(overrides):
         if "=" not in item:
-            raise ConfigError(f"--set {_shortened(item)!r}: expected key=value")
+            raise ConfigError(f"--set {shortened(item, SET_SHOWN)!r}: expected key=value")
         key, _, value = item.partition("=")
         try:
             parsed = _parse_value(value)
         except TooLarge as err:
             raise ConfigError(f"--set {key.strip()}: {err}") from None
         except yaml.YAMLError as err:
-            raise ConfigError(f"--set {_shortened(item)}: not valid YAML: {_yaml_problem(err)}") from None
+            raise ConfigError(f"--set {shortened(item, SET_SHOWN)}: not valid YAML: {_yaml_problem(err)}") from None
         set_dotted(data, key, parsed)
     return data
 

@@ -24,6 +24,7 @@ from trackjam.config.limits import (
     MAX_ACCEL_VAR,
     MAX_AGENTS,
     MAX_ANGLE_DEG,
+    MAX_SEED,
     MAX_LENGTH,
     MAX_SPEED,
     MAX_STEPS,
@@ -577,7 +578,7 @@ class Scenario(_Model):
         "'_', '-', '+' or '.', starting with a letter or digit",
     )
     steps: Step = Field(30, description=f"number of steps of dT = 1 s, in [1, {MAX_STEPS}]")
-    seed: Integer(0, 2**63 - 1) = Field(1, description="the one seed every random choice flows from, in [0, 2^63 - 1]")
+    seed: Integer(0, MAX_SEED) = Field(1, description="the one seed every random choice flows from, in [0, 2^63 - 1]")
     area: Area = Field(default_factory=Area)
     target: Target = Field(default_factory=Target)
     targets: list[ListedTarget] | None = Field(

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 from trackjam.experiments.experiment import SWARM, Configuration, Experiment, Panel
 from trackjam.experiments.progress import SWARM_SHOWN
 from trackjam.experiments.summary import Metric, Pair
@@ -43,6 +43,7 @@ from trackjam.metrics.multi import HELD, UNDETECTABLE, multi_track_quality, ospa
 DEFAULT_GRID: tuple[tuple[int, ...], tuple[int, ...]] = ((1, 2, 3, 4), (3, 4, 5, 6))  # (K values, N values)
 MAX_GRID_TARGETS = 8  # beyond it a cell no longer fits the machine (and the swarm engine plans at 4 aims)
 MAX_GRID_AGENTS = 12
+GRID_SHOWN = 40  # characters of a --grid value a message shows
 NODE_LIMIT = 2_000_000  # exact's budget per search in the sweep [search nodes]
 RESPONSE = {"action": "land"}  # the rest is the configuration's default: -40 dB for 3 steps, 2 m/step
 _SWARM, _TARGET, _AGENT = 2, 0, 1  # spawn-key entries of the swarm draw (0 and 1 are trials.py's)
@@ -74,23 +75,18 @@ def _whole(digits: str) -> int | float:
     return int(digits) if len(digits) <= 18 else math.inf
 
 
-def _short(text: str) -> str:
-    """``text`` for a message: at most 40 characters."""
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
 def _values(text: str, what: str, top: int) -> tuple[int, ...]:
     out: list[int] = []
     for part in text.split(","):
         m = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part, re.ASCII)
         if m is None:
-            raise ConfigError(f"--grid: {what} {_short(text)!r} is not a list of whole numbers or ranges (e.g. 1-4 or 3,5)")
+            raise ConfigError(f"--grid: {what} {shortened(text, GRID_SHOWN)!r} is not a list of whole numbers or ranges (e.g. 1-4 or 3,5)")
         a, b = _whole(m[1]), _whole(m[2] or m[1])
         if not 1 <= a <= b <= top:
-            raise ConfigError(f"--grid: {what} {_short(part.strip())!r} must lie within 1..{top}, low to high")
+            raise ConfigError(f"--grid: {what} {shortened(part.strip(), GRID_SHOWN)!r} must lie within 1..{top}, low to high")
         out += range(a, b + 1)
     if len(set(out)) != len(out):
-        raise ConfigError(f"--grid: {what} {_short(text)!r} lists a value twice")
+        raise ConfigError(f"--grid: {what} {shortened(text, GRID_SHOWN)!r} lists a value twice")
     return tuple(sorted(out))
 
 
@@ -101,7 +97,7 @@ def parse_grid(text: str | None) -> tuple[tuple[int, ...], tuple[int, ...]]:
         return DEFAULT_GRID
     targets, sep, agents = text.strip().partition("x")
     if not sep or not targets or not agents:
-        raise ConfigError(f"--grid {_short(text)!r}: expected TARGETSxAGENTS, e.g. 1-4x3-6 or 2,3x5")
+        raise ConfigError(f"--grid {shortened(text, GRID_SHOWN)!r}: expected TARGETSxAGENTS, e.g. 1-4x3-6 or 2,3x5")
     return _values(targets, "targets", MAX_GRID_TARGETS), _values(agents, "agents", MAX_GRID_AGENTS)
 
 

@@ -13,7 +13,6 @@ in the paper.
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 from typing import Mapping
 
@@ -28,7 +27,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from trackjam.metrics.track_quality import CLASSES, step_classes  # noqa: E402
 from trackjam.radio.antenna import interference_matrix  # noqa: E402
-from trackjam.viz.settings import CONSTRAINED_LAYOUT_WARNING, FigureSettings  # noqa: E402
+from trackjam.viz.settings import FigureSettings, save_figure  # noqa: E402
 
 Columns = Mapping[str, np.ndarray]
 
@@ -157,9 +156,7 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
         handles.append(Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded"))
     ax_level.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
     fig.suptitle(f"trackjam run: {fs.name}  ({N} agents, {T} steps, solver {fs.solver})")
-    with warnings.catch_warnings():  # many agents or a long id: some panel has no room left
-        warnings.filterwarnings("ignore", CONSTRAINED_LAYOUT_WARNING, UserWarning)
-        fig.savefig(path, dpi=110, format="png")
+    save_figure(fig, path, format="png")
     plt.close(fig)
     return path
 

@@ -4,6 +4,7 @@ the metrics' parameters, built from the scenario by
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +27,11 @@ class FigureSettings:
     gate: float  # metrics.gate, track quality judged by the truth [m]
 
 
-# matplotlib's warning when a figure's panels leave no room for one of them (64 agents in the
-# legends, a 100-character target id): the figure is written all the same, and a raw warning is
-# no line of ours on stderr
-CONSTRAINED_LAYOUT_WARNING = "constrained_layout not applied"
+def save_figure(fig, path, **kwargs) -> None:
+    """``fig.savefig(path, dpi=110, **kwargs)`` without matplotlib's "constrained_layout not
+    applied" warning, given when the panels leave no room for one of them (64 agents in the
+    legends, a 100-character target id): the figure is written all the same, and a raw warning is
+    no line of ours on stderr."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "constrained_layout not applied", UserWarning)
+        fig.savefig(path, dpi=110, **kwargs)

@@ -10,7 +10,6 @@ each target held or not per step; the multi-target OSPA with its cardinality par
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import matplotlib
@@ -20,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 
-from trackjam.viz.settings import CONSTRAINED_LAYOUT_WARNING, FigureSettings  # noqa: E402
+from trackjam.viz.settings import FigureSettings, save_figure  # noqa: E402
 
 NONE_COLOUR = "#bbbbbb"
 
@@ -97,8 +96,6 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
     ax3.set_ylabel(f"OSPA (p={fs.ospa_order:g}, c={fs.ospa_cutoff:g}) [m]")
     ax3.legend(loc="upper left", fontsize=8)
     ax3.set_xlim(0.5, T + 0.5)
-    with warnings.catch_warnings():  # many agents or a long id: some panel has no room left
-        warnings.filterwarnings("ignore", CONSTRAINED_LAYOUT_WARNING, UserWarning)
-        fig.savefig(path, dpi=110)
+    save_figure(fig, path)
     plt.close(fig)
     return path
