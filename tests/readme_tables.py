@@ -18,3 +18,14 @@ def first_column_names(heading: str) -> set[str]:
             names |= {span[:-5] + k for k in "xyz"} if span.endswith("_x/y/z") else (
                 set("xyz") if span == "x/y/z" else {span})
     return names
+
+
+def closing_table_rows(text: str) -> dict[str, str]:
+    """metric -> value of a run's closing table, as printed (rich's box) or as the README shows it."""
+    rows = {}
+    for line in text.splitlines():
+        parts = [p.strip() for p in line.strip().strip("│").split("│")] if "│" in line else \
+            re.split(r"\s{2,}", line.strip(), maxsplit=1)
+        if len(parts) == 2 and parts[0] and parts[0] != "metric":
+            rows[parts[0]] = parts[1]
+    return rows

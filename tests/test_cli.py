@@ -10,6 +10,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from readme_tables import closing_table_rows
 from trackjam.cli import app
 
 runner = CliRunner()
@@ -239,26 +240,15 @@ def test_a_run_with_several_targets_runs_on_the_swarm_engine_and_writes_its_logs
     assert not bad.exists()
 
 
-def _table_rows(text: str) -> dict[str, str]:
-    """metric -> value of a closing table, as printed (rich's box) or as the README shows it."""
-    rows = {}
-    for line in text.splitlines():
-        parts = [p.strip() for p in line.strip().strip("│").split("│")] if "│" in line else \
-            re.split(r"\s{2,}", line.strip(), maxsplit=1)
-        if len(parts) == 2 and parts[0] and parts[0] != "metric":
-            rows[parts[0]] = parts[1]
-    return rows
-
-
 def test_the_readmes_quick_start_table_is_what_the_run_prints(tmp_path):
     """The closing table the README shows for `trackjam run paper-fig3` (seed 1) is the one the run
     prints today, row by row (the time per step, left out there, aside): a change to the filter
     or the solver that moves the run makes this fail until the README is redone."""
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     block = readme.split("The closing table of that run", 1)[1].split("```", 2)[1]
-    shown = _table_rows(block)
+    shown = closing_table_rows(block)
     assert len(shown) >= 10 and "jamming incidents per agent" in shown
     r = runner.invoke(app, ["run", "paper-fig3", "--out", str(tmp_path / "run"), "--no-figures"])
     assert r.exit_code == 0, r.output
-    printed = _table_rows(r.output)
+    printed = closing_table_rows(r.output)
     assert {k: printed.get(k) for k in shown} == shown
