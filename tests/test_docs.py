@@ -1,8 +1,10 @@
 """The README documents every configuration key, and CI runs the README's test command."""
 
+import re
 from pathlib import Path
 import typing
 
+import pytest
 from pydantic import BaseModel
 
 from trackjam.config import Scenario
@@ -33,3 +35,44 @@ def test_ci_runs_the_readmes_test_command_exactly():
     install_run, install_test = first_block
     assert "trackjam run" in install_run and "pytest" in install_test
     assert install_test in (ROOT / ".ci" / "run").read_text().splitlines()
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor for a heading: lower case, punctuation dropped, spaces to hyphens."""
+    text = re.sub(r"[`*]", "", heading.strip().lower())
+    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
+
+
+def _anchors(text: str) -> set[str]:
+    return {_slug(h) for h in re.findall(r"^#{1,6} (.+)$", _outside_code(text), re.M)}
+
+
+def _outside_code(text: str) -> str:
+    return re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+
+
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+
+
+def test_the_slug_rule_gives_githubs_anchors():
+    assert _slug("Experiments (Table I / Fig. 4, Fig. 5)") == "experiments-table-i--fig-4-fig-5"
+    assert _slug("The cue's velocity") == "the-cues-velocity"
+    assert _slug("Several targets (building blocks, ours)") == "several-targets-building-blocks-ours"
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_and_anchor_in_the_docs_resolves(doc):
+    """A link to a file of the repository names one that exists, and a #part names one of its
+    headings: moving a section from the README to docs/ must move its links too."""
+    text = _outside_code(doc.read_text())
+    broken = []
+    for target in re.findall(r"\]\(([^)\s]+)\)", text):
+        if re.match(r"[a-z]+:", target):  # https:, mailto:
+            continue
+        path, _, anchor = target.partition("#")
+        file = (doc.parent / path).resolve() if path else doc
+        if not file.exists():
+            broken.append(f"{target}: no file {path}")
+        elif anchor and file.suffix == ".md" and anchor not in _anchors(file.read_text()):
+            broken.append(f"{target}: no heading #{anchor} in {file.name}")
+    assert not broken, broken
