@@ -1,4 +1,4 @@
-"""The run figure (the paper's Fig. 3 (a)-(f)) and the log helpers it shares with the replay."""
+"""The run figure (the paper's Fig. 3 (a)-(h)) and the log helpers it shares with the replay."""
 
 from __future__ import annotations
 
@@ -10,14 +10,17 @@ from matplotlib.figure import Figure
 
 from trackjam.config import load_scenario
 from trackjam.viz.figure import (
+    _panel_cones,
     _panel_powers,
     _panel_trajectories,
+    agent_positions,
     agent_table,
     interference_per_step,
     level_labels,
     occluded_steps,
     path_box,
     plot_run,
+    snapshot_steps,
     to_db,
 )
 from trackjam.viz.replay import replay_figure
@@ -194,3 +197,55 @@ def test_plot_run_writes_the_figure(run, tmp_path):
 def test_plot_run_with_everything_off_and_no_target(tmp_path):
     steps, agents, scenario = quiet_run()
     _assert_png_drawn(plot_run(steps, agents, figure_settings(scenario), tmp_path / "run.png"))
+
+
+def test_snapshot_steps_pick_the_most_interference_and_the_last_step(run):
+    """(g) is the step at which some agent receives the most interference, the earliest of ties,
+    as a brute-force scan of the log finds it; (h) the last step."""
+    steps, agents, scenario = run
+    T, N = scenario.steps, scenario.n_agents
+    fs = figure_settings(scenario)
+    (k_g, why_g), (k_h, why_h) = snapshot_steps(agents, fs, T, N)
+    rows = sorted(zip(agents["t"], agents["agent"], agents["interference_w"]), key=lambda r: (-r[2], r[0]))
+    t_best, j_best, w_best = rows[0]
+    assert w_best > 0 and k_g == t_best and f"agent {j_best + 1}" in why_g
+    assert f"{10 * np.log10(w_best):.1f} dBW" in why_g
+    assert (k_h, why_h.splitlines()[0]) == (T, "the last step")
+    # a tie goes to the earlier step
+    tied = dict(agents)
+    tied["interference_w"] = np.where(np.asarray(agents["t"]) == T, w_best, agents["interference_w"])
+    assert snapshot_steps(tied, fs, T, N)[0][0] == t_best
+
+
+def test_snapshot_steps_without_interference_show_the_middle_step(tmp_path):
+    steps, agents, scenario = quiet_run()
+    T = scenario.steps
+    (k_g, why_g), _ = snapshot_steps(agents, figure_settings(scenario), T, scenario.n_agents)
+    assert k_g == (T + 1) // 2 and "no agent receives interference" in why_g
+
+
+def test_panels_g_h_draw_one_cone_per_transmitting_agent_with_the_cones_geometry(run):
+    """The cone drawn for agent j is the sensing cone of the log: its rim at h_a along the axis
+    from u_t^j to its aim point, with radius h_a tan(theta_a / 2); an agent that is off draws none."""
+    from mpl_toolkits.mplot3d.art3d import Line3D, Poly3DCollection
+
+    steps, agents, scenario = run
+    T, N = scenario.steps, scenario.n_agents
+    fs = figure_settings(scenario)
+    h, half = fs.antenna.height, fs.antenna.half_angle
+    on = agent_table(agents, "power_w", T, N) > 0
+    assert on.any() and not on.all()  # the fake run has both, so both cases are drawn
+    u_all, point_all = agent_positions(agents, T, N), agent_positions(agents, T, N, "point_")
+    for k in range(1, T + 1):
+        ax = Figure().add_subplot(projection="3d")
+        _panel_cones(ax, steps, agents, fs, T, N, k, "(g) test")
+        assert sum(isinstance(c, Poly3DCollection) for c in ax.collections) == on[k - 1].sum()
+        rims = [np.column_stack(line.get_data_3d()) for line in ax.lines
+                if isinstance(line, Line3D) and len(line.get_data_3d()[0]) > 2]
+        assert len(rims) == on[k - 1].sum()
+        for rim, j in zip(rims, np.flatnonzero(on[k - 1])):
+            u, point = u_all[k - 1, j], point_all[k - 1, j]
+            axis = (point - u) / np.linalg.norm(point - u)
+            along = (rim - u) @ axis
+            radial = np.linalg.norm((rim - u) - along[:, None] * axis, axis=1)
+            assert np.allclose(along, h) and np.allclose(radial, h * np.tan(half))

@@ -31,7 +31,7 @@ def error_bars(means: list[float], ci95: list[float], floor: float) -> list[list
     return [below, above]
 
 
-# the track-quality classes in the colours of run.png's band (g); the ceiling in grey
+# the track-quality classes in the colours of run.png's band (i); the ceiling in grey
 COLOURS = {"held": "#2ca02c", "false_track": "#ff7f0e", "missed": "#d62728", "ceiling": "0.6"}
 
 

@@ -1,8 +1,9 @@
-"""The figure of one run, after the paper's Fig. 3 (a)-(f), drawn from the run's logs.
+"""The figure of one run, after the paper's Fig. 3 (a)-(h), drawn from the run's logs.
 
 Panels: (a) 3D trajectories, (b) transmit level per agent, (c) who jams whom, (d) received
 powers in dB (target and interference, with delta), (e) fused existence probability, (f) OSPA,
-and under it a band with each step's track quality judged by the truth (ours), so that no panel
+(g) and (h) the agents with their sensing cones at two steps (:func:`snapshot_steps`), and under
+(f) a band (i) with each step's track quality judged by the truth (ours), so that no panel
 lets a confirmed track that has slipped off the target pass for a tracked one.
 Steps where the target exists but cannot be detected (occlusion) are shaded on every time axis.
 
@@ -24,12 +25,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from trackjam.metrics.track_quality import CLASSES, step_classes  # noqa: E402
-from trackjam.radio.antenna import interference_matrix  # noqa: E402
+from trackjam.radio.antenna import axis_of, interference_matrix  # noqa: E402
 from trackjam.viz.settings import FigureSettings, save_figure  # noqa: E402
 
 Columns = Mapping[str, np.ndarray]
+CONE_SEGMENTS = 24
 
 # Black, cyan and red are taken by the truth, the estimate and the target's received power.
 AGENT_COLOURS = [
@@ -116,8 +119,33 @@ def to_db(w: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 
 
+def cone_mesh(apex: np.ndarray, point: np.ndarray, height: float, half_angle: float,
+              segments: int = CONE_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (segments + 2, 3) and triangles (2 * segments, 3) of the closed sensing cone.
+
+    Vertex 0 is the apex, 1..segments the rim at distance h_a along the axis with radius
+    h_a tan(theta_a / 2), the last one the centre of the base.
+    """
+    apex = np.asarray(apex, dtype=float)
+    a = axis_of(apex, point)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(a, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    phi = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    centre = apex + height * a
+    radius = height * np.tan(half_angle)
+    rim = centre + radius * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+    vertices = np.vstack([apex, rim, centre])
+    k = np.arange(1, segments + 1)
+    k_next = np.roll(k, -1)
+    side = np.stack([np.zeros(segments, dtype=int), k, k_next], axis=1)
+    base = np.stack([np.full(segments, segments + 1), k_next, k], axis=1)
+    return vertices, np.vstack([side, base])
+
+
 def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Path) -> Path:
-    """Draw panels (a)-(f) of the paper's Fig. 3 for one run and save them as a PNG at ``path``.
+    """Draw panels (a)-(h) of the paper's Fig. 3 for one run and save them as a PNG at ``path``.
 
     ``steps`` and ``agents`` are the run's logs (column name -> 1-D array), ``fs`` what the run's
     scenario says beside them (:func:`trackjam.simulation.build.figure_settings`). Returns the path.
@@ -125,9 +153,12 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
     path = Path(path)
     T, N = run_shape(steps, agents)
     t = np.asarray(steps["t"], dtype=float)
-    fig = plt.figure(figsize=(17, 11), layout="constrained")
+    fig = plt.figure(figsize=(17, 14), layout="constrained")
     outer = fig.add_gridspec(1, 2, width_ratios=[1.0, 1.15])
-    ax3d = fig.add_subplot(outer[0], projection="3d")
+    left = outer[0].subgridspec(2, 2, height_ratios=[1.25, 1.0])
+    ax3d = fig.add_subplot(left[0, :], projection="3d")
+    ax_g = fig.add_subplot(left[1, 0], projection="3d")
+    ax_h = fig.add_subplot(left[1, 1], projection="3d")
     right = outer[1].subgridspec(6, 1, height_ratios=[1.1, 1.0, 1.3, 1.0, 1.0, 0.28])
     axes = [fig.add_subplot(right[0])]
     axes += [fig.add_subplot(right[k], sharex=axes[0]) for k in range(1, 6)]
@@ -140,6 +171,9 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
     _panel_existence(ax_exist, steps, agents, t, T, N)
     _panel_ospa(ax_ospa, steps, fs, t)
     _panel_quality(ax_quality, steps, fs, t)
+    (k_g, why_g), (k_h, why_h) = snapshot_steps(agents, fs, T, N)
+    _panel_cones(ax_g, steps, agents, fs, T, N, k_g, f"(g) step {k_g}: {why_g}")
+    _panel_cones(ax_h, steps, agents, fs, T, N, k_h, f"(h) step {k_h}: {why_h}")
 
     occ = occluded_steps(steps)
     for ax in axes:
@@ -200,7 +234,7 @@ def _panel_trajectories(ax, steps, agents, fs, T, N) -> None:
     ax.set_zlim(lo[2], hi[2])
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
+    ax.set_zlabel("z [m]", labelpad=-4)  # nearer its ticks: the zoomed box draws it past the panel
     ax.set_box_aspect(hi - lo, zoom=1.2)
     ax.set_title("(a) trajectories, zoomed to the paths  (o start, ^ end, * target appears)")
     ax.legend(loc="upper left", fontsize=8)
@@ -319,6 +353,66 @@ def _panel_quality(ax, steps, fs, t) -> None:
         ax.axvspan(k - 0.5, k + 0.5, color=QUALITY_COLOURS[name], lw=0, zorder=1)
     ax.set_ylim(0, 1)
     ax.set_yticks([])
-    ax.set_title(f"(g) track quality judged by the truth (gate {gate:g} m)", loc="left", fontsize=10)
+    ax.set_title(f"(i) track quality judged by the truth (gate {gate:g} m)", loc="left", fontsize=10)
     handles = [Patch(color=QUALITY_COLOURS[c], label=QUALITY_LABELS[c]) for c in CLASSES]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.6), fontsize=7, frameon=False, ncol=2)
+
+
+JAM_COLOUR = "#e00000"
+
+
+def snapshot_steps(agents: Columns, fs: FigureSettings, T: int, N: int) -> tuple[tuple[int, str], tuple[int, str]]:
+    """The steps of panels (g) and (h), each with the reason it was chosen, as in the paper's Fig. 3:
+    (g) shows the team when one of its agents receives the most interference from the others'
+    cones (the paper's step 16, where agent 1 is jammed), the earliest such step, or the middle
+    step when no agent ever receives any; (h) shows the last step."""
+    received = np.nan_to_num(agent_table(agents, "interference_w", T, N), nan=0.0)
+    if received.max(initial=0.0) > 0:
+        k, i = np.unravel_index(np.argmax(received), received.shape)  # row-major: the earliest step
+        db = 10 * np.log10(received[k, i])
+        first = (int(k) + 1, f"the most interference,\n{db:.1f} dBW at agent {int(i) + 1} "
+                             f"(delta {fs.interference_limit_db:g} dBW)")
+    else:
+        first = ((T + 1) // 2, "the middle step\n(no agent receives interference)")
+    return first, (T, "the last step\n(cones while on; red ring: jammed)")
+
+
+def _panel_cones(ax, steps, agents, fs, T, N, k: int, title: str) -> None:
+    """(g), (h): at step ``k`` the agents u_t (jammed ones ringed in red), their sensing cones
+    while transmitting (apex at the agent, axis to the point the antenna aimed at, height h_a,
+    full angle theta_a), the true target (black star) and the fused estimate (cyan)."""
+    ant = fs.antenna
+    u = agent_positions(agents, T, N)[k - 1]
+    point = agent_positions(agents, T, N, "point_")[k - 1]
+    power = agent_table(agents, "power_w", T, N)[k - 1]
+    jammed = agent_table(agents, "jammed", T, N)[k - 1] > 0
+    shown = [u]
+    for j in range(N):
+        if not (power[j] > 0 and np.isfinite(point[j]).all() and np.isfinite(u[j]).all()):
+            continue
+        v, tri = cone_mesh(u[j], point[j], ant.height, ant.half_angle)
+        c = agent_colour(j)
+        ax.add_collection3d(Poly3DCollection(v[tri], facecolor=c, edgecolor="none", alpha=0.14))
+        rim = v[1:-1]
+        ax.plot(*np.vstack([rim, rim[:1]]).T, color=c, lw=0.8)
+        ax.plot(*np.stack([u[j], u[j] + ant.height * axis_of(u[j], point[j])]).T, color=c, lw=0.8, ls="--")
+        shown.append(v)
+    for j in range(N):
+        ax.scatter(*u[j], color=agent_colour(j), marker="o", s=50, edgecolor="k", depthshade=False)
+        if jammed[j]:
+            ax.scatter(*u[j], facecolor="none", edgecolor=JAM_COLOUR, marker="o", s=190, lw=1.6, depthshade=False)
+    truth = steps_xyz(steps, "truth_")[k - 1]
+    est = steps_xyz(steps, "est_")[k - 1]
+    if np.isfinite(truth).all():
+        ax.scatter(*truth, color=TRUTH_COLOUR, marker="*", s=110, depthshade=False)
+        shown.append(truth[None])
+    if np.isfinite(est).all():
+        ax.scatter(*est, color=ESTIMATE_COLOUR, marker="D", s=30, depthshade=False)
+        shown.append(est[None])
+    lo, hi = path_box(np.vstack(shown), fs)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(np.maximum(hi - lo, 1e-9))
+    ax.tick_params(labelsize=7)
+    ax.set_title(title, fontsize=9)

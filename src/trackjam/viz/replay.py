@@ -17,14 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
-from trackjam.radio.antenna import AntennaModel, axis_of
+from trackjam.radio.antenna import AntennaModel
 from trackjam.viz.figure import (
     ESTIMATE_COLOUR,
+    JAM_COLOUR,
     TRUTH_COLOUR,
     Columns,
     agent_colour,
     agent_positions,
     agent_table,
+    cone_mesh,
     interference_per_step,
     level_labels,
     run_shape,
@@ -32,35 +34,8 @@ from trackjam.viz.figure import (
 )
 from trackjam.viz.settings import FigureSettings
 
-CONE_SEGMENTS = 24
 MAX_FRAMES = 150  # the page and its memory stay bounded whatever the run's length
 TRAIL_FRAMES = 60  # a trail shows the last 60 shown steps (all of a run of up to 60 steps)
-JAM_COLOUR = "#e00000"
-
-
-def cone_mesh(apex: np.ndarray, point: np.ndarray, height: float, half_angle: float,
-              segments: int = CONE_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (segments + 2, 3) and triangles (2 * segments, 3) of the closed sensing cone.
-
-    Vertex 0 is the apex, 1..segments the rim at distance h_a along the axis with radius
-    h_a tan(theta_a / 2), the last one the centre of the base.
-    """
-    apex = np.asarray(apex, dtype=float)
-    a = axis_of(apex, point)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(a, helper)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
-    phi = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
-    centre = apex + height * a
-    radius = height * np.tan(half_angle)
-    rim = centre + radius * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
-    vertices = np.vstack([apex, rim, centre])
-    k = np.arange(1, segments + 1)
-    k_next = np.roll(k, -1)
-    side = np.stack([np.zeros(segments, dtype=int), k, k_next], axis=1)
-    base = np.stack([np.full(segments, segments + 1), k_next, k], axis=1)
-    return vertices, np.vstack([side, base])
 
 
 Trace = dict  # a plotly trace as plain data: building plotly objects for every frame costs minutes
