@@ -11,8 +11,10 @@ at the ball's centre. The model document (docs/model.md) fixes the rest:
 - the target exists from step 1 and is never occluded.
 
 Seeds. The draw of trial k depends only on (experiment seed, k): every configuration of an
-experiment sees the same trials (the paper's "same trials"; a paired comparison). The
-simulation seed of trial k under configuration c depends only on (experiment seed, c, k).
+experiment starts trial k from the same positions (the paper's "same trials"), so a comparison
+of configurations is paired on the start. The simulation seed of trial k under configuration c
+depends only on (experiment seed, c, k): the truth's random walk, the noise, the clutter and
+GRASP's samples differ between configurations.
 Both come from ``np.random.SeedSequence(seed, spawn_key=...)``, so no result depends on the
 number of workers, their order, or the backend.
 """
