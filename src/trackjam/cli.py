@@ -241,10 +241,11 @@ def run(
     """Run one scenario end to end and write its logs, figure and 3D replay."""
     s = _load(scenario, set_, seed, warn=False)
     _runnable(s)
+    default = out is None
     out = out or Path("runs") / f"{s.name}-seed{s.seed}"
     from trackjam.simulation.output import check_out_dir
 
-    check_out_dir(out, s)  # before any work: nothing is computed for a folder we cannot use
+    check_out_dir(out, s, default)  # before any work: nothing is computed for a folder we cannot use
     _warn(s)  # after every refusal: a refused run prints its one line and nothing else
 
     from rich.console import Console

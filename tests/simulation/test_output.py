@@ -65,6 +65,24 @@ def test_out_holding_another_scenario_is_refused_and_untouched(tmp_path):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
+def test_the_default_folder_of_another_run_is_refused_without_blaming_an_untyped_out(tmp_path):
+    # `trackjam run paper-fig3`, then the README's `--set antenna.pointing=aim`: the same name and
+    # seed, so the same default folder, which holds the first run and is kept
+    first = tmp_path / "runs" / "paper-fig3-seed1"
+    first.mkdir(parents=True)
+    (first / "scenario.yaml").write_text("name: paper-fig3\n")
+    r = trackjam("run", "paper-fig3", "--set", "antenna.pointing=aim", *sets(FAST), cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and "--out runs" not in lines[0], lines
+    assert "runs/paper-fig3-seed1 (the default output folder, from the scenario's name and seed)" in lines[0]
+    assert "another scenario's run; pass --out FOLDER or change the scenario's `name`" in lines[0]
+    assert [p.name for p in first.iterdir()] == ["scenario.yaml"]
+    # a --out the user typed is named as such
+    r = trackjam("run", "paper-fig3", "--out", str(first), *sets(FAST))
+    assert r.returncode == 2 and f"--out {first}: folder is not empty" in r.stderr
+
+
 def test_out_with_foreign_files_is_refused(tmp_path):
     (tmp_path / "notes.md").write_text("mine")
     with pytest.raises(ConfigError, match="not empty"):

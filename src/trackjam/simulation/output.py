@@ -35,11 +35,15 @@ RUN_FILES = (
 )
 
 
-def check_out_dir(out: Path, scenario: Scenario) -> None:
-    """Refuse an output folder that would lose or corrupt something (one-line ConfigError)."""
+def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
+    """Refuse an output folder that would lose or corrupt something (one-line ConfigError).
+
+    ``default``: the user gave no ``--out`` and ``out`` is the one named after the scenario's
+    name and seed, which the message says (it blamed a ``--out`` nobody typed)."""
     out = Path(out)
+    where = f"{out} (the default output folder, from the scenario's name and seed)" if default else f"--out {out}"
     if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out}: is a file, not a folder")
+        raise ConfigError(f"{where}: is a file, not a folder")
     if out.is_dir():
         entries = [p.name for p in out.iterdir() if not _leftover(p)]
         if entries:
@@ -50,27 +54,26 @@ def check_out_dir(out: Path, scenario: Scenario) -> None:
             strangers = sorted(set(entries) - set(RUN_FILES))
             if not same or strangers:
                 what = "another scenario's run" if previous.is_file() else "other files"
-                raise ConfigError(
-                    f"--out {out}: folder is not empty and holds {what}; choose a new or empty folder"
-                )
-    parent = out if out.is_dir() else _existing_parent(out)
+                fix = "pass --out FOLDER or change the scenario's `name`" if default else "choose a new or empty folder"
+                raise ConfigError(f"{where}: folder is not empty and holds {what}; {fix}")
+    parent = out if out.is_dir() else _existing_parent(out, where)
     try:  # a real probe: os.access says yes to root even on read-only file systems
         with tempfile.TemporaryFile(dir=parent):
             pass
     except OSError as err:
-        raise ConfigError(f"--out {out}: {parent} is not writable ({err.strerror})") from None
+        raise ConfigError(f"{where}: {parent} is not writable ({err.strerror})") from None
 
 
 def _leftover(p: Path) -> bool:
     return p.is_file() and any(is_temporary_of(p, name) for name in RUN_FILES)
 
 
-def _existing_parent(p: Path) -> Path:
+def _existing_parent(p: Path, where: str) -> Path:
     p = p.absolute()
     while not p.exists():
         p = p.parent
     if not p.is_dir():
-        raise ConfigError(f"--out {p}: is a file, not a folder")
+        raise ConfigError(f"{where}: {p} is a file, not a folder")
     return p
 
 
