@@ -71,6 +71,20 @@ def test_bench_filter_group_prints_and_writes_its_timings(tmp_path):
         assert cell(row[key]) in line
 
 
+def test_a_skipped_benchmarks_bracketed_text_is_printed_literally(monkeypatch):
+    # without the env extra the env group says how to install it; rich read "[env]" as markup
+    # and printed `pip install "trackjam"`
+    from trackjam.benchmarks import env
+
+    skipped = 'trackjam.env needs the env extra: pip install "trackjam[env]" (No module named \'pettingzoo\')'
+    monkeypatch.setattr(env, "bench_env", lambda episodes: {"name": f"{env.NAME} [x]", "skipped": skipped,
+                                                           "rows": [{"[bold]k": "[v]"}]})
+    r = CliRunner().invoke(app, ["bench", "--quick", "--only", "env"])
+    assert r.exit_code == 0, r.output
+    assert 'pip install "trackjam[env]"' in r.output
+    assert f"{env.NAME} [x]" in r.output and "[bold]k" in r.output and "[v]" in r.output
+
+
 def test_unknown_bench_group_exits_2():
     r = CliRunner().invoke(app, ["bench", "--only", "everything"])
     assert r.exit_code == 2

@@ -296,10 +296,12 @@ def test_an_experiment_of_one_trial_prints_its_means_without_nan(tmp_path):
     from trackjam import cli
     from trackjam.experiments.cli import _mean_ci
 
+    out = tmp_path / "[bold]e"  # printed literally in the table's title, not read as markup
     r = CliRunner().invoke(cli.app, ["experiment", "constraints", "--trials", "1", "--steps", "2", "--workers", "1",
-                                     "--out", str(tmp_path / "e"), *_sets(["filter.particles=100", "filter.birth_particles=20"])])
+                                     "--out", str(out), *_sets(["filter.particles=100", "filter.birth_particles=20"])])
     assert r.exit_code == 0, r.output
     assert "nan" not in r.output.lower()  # one trial has no interval: it printed "0.5 ± nan"
+    assert f"({out / 'summary.csv'})" in r.output
     assert (_mean_ci(0.5, float("nan")), _mean_ci(0.5, 0.25), _mean_ci(float("nan"), float("nan"))) == ("0.5", "0.5 ± 0.25", "-")
 
 

@@ -63,29 +63,32 @@ def cell(v) -> str:
 
 def _tables(group: str, rows: list[dict]) -> list:
     """One two-column table per benchmark (every scalar it measured, nested ones flattened),
-    and one table per list of records in it (a column per key any record has)."""
+    and one table per list of records in it (a column per key any record has). Every text is
+    escaped: rich read the ``[env]`` of a skipped benchmark's ``pip install "trackjam[env]"`` as
+    markup and dropped it."""
+    from rich.markup import escape
     from rich.table import Table
 
     tables = []
     for row in rows:
         flat = flatten(row)
         name = str(flat.pop("name", group))
-        table = Table(title=name, title_justify="left")
+        table = Table(title=escape(name), title_justify="left")
         table.add_column("figure")
         table.add_column("value", justify="right")
         for k, v in flat.items():
             if not isinstance(v, list):
-                table.add_row(k, cell(v))
+                table.add_row(escape(k), escape(cell(v)))
         tables.append(table)
         for k, v in flat.items():
             if isinstance(v, list) and v and all(isinstance(r, dict) for r in v):
                 records = [flatten(r) for r in v]
                 columns = list(dict.fromkeys(c for r in records for c in r))
-                sub = Table(title=f"{name}: {k}", title_justify="left")
+                sub = Table(title=escape(f"{name}: {k}"), title_justify="left")
                 for c in columns:
-                    sub.add_column(c, justify="right")
+                    sub.add_column(escape(c), justify="right")
                 for r in records:
-                    sub.add_row(*[cell(r.get(c)) for c in columns])
+                    sub.add_row(*[escape(cell(r.get(c))) for c in columns])
                 tables.append(sub)
     return tables
 
@@ -93,8 +96,10 @@ def _tables(group: str, rows: list[dict]) -> list:
 def _print(group: str, rows: list[dict]) -> None:
     from rich.console import Console
 
+    from rich.markup import escape
+
     console = Console(width=160)
-    console.rule(group)
+    console.rule(escape(group))
     for table in _tables(group, rows):
         console.print(table)
 
