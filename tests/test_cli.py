@@ -252,3 +252,28 @@ def test_the_readmes_quick_start_table_is_what_the_run_prints(tmp_path):
     assert r.exit_code == 0, r.output
     printed = closing_table_rows(r.output)
     assert {k: printed.get(k) for k in shown} == shown
+
+
+def _help(*args: str) -> str:
+    r = runner.invoke(app, [*args, "--help"])
+    assert r.exit_code == 0, r.output
+    return r.output
+
+
+@pytest.mark.parametrize(
+    "args, flags",
+    [((), ["--version", "--help"]), (("run",), ["--figures", "--help"]), (("bench",), ["--quick", "--help"])],
+)
+def test_help_shows_no_value_beside_a_flag(args, flags):
+    out = _help(*args)
+    assert "<bool>" not in out
+    for flag in flags:
+        line = next(ln for ln in out.splitlines() if f" {flag} " in ln)
+        assert "<" not in line, line
+    if args:  # an option that takes a value still shows its type
+        assert "<path>" in out
+
+
+def test_experiment_help_lists_every_scheduler_scheme():
+    words = " ".join(_help("experiment").replace("│", " ").split())
+    assert "SCHEME://HOST:PORT with tcp, tls, ws or wss" in words

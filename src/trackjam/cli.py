@@ -13,6 +13,26 @@ from pathlib import Path
 from typing import Callable, Optional
 
 import typer
+from typer.core import TyperCommand, TyperGroup
+
+
+def _flags_take_no_value(cls: type) -> type:
+    """``cls`` (a typer command or group) whose help shows no type beside a flag: typer printed
+    ``--quick <bool>``, ``--figures --no-figures <bool>``, as if the flag took a value."""
+
+    class Command(cls):
+        def format_help(self, ctx, formatter):
+            for param in self.get_params(ctx):
+                if getattr(param, "is_flag", False) and param.metavar is None:
+                    param.metavar = ""  # what typer shows in the type's place
+            return super().format_help(ctx, formatter)
+
+    Command.__name__ = Command.__qualname__ = f"_{cls.__name__}"
+    return Command
+
+
+_Command = _flags_take_no_value(TyperCommand)
+
 
 class _Cli(typer.Typer):
     """Typer whose usage errors (``--seed abc``, an unknown option) are one line and exit 2 too,
@@ -45,8 +65,13 @@ class _Cli(typer.Typer):
             raise
         sys.exit(rv if isinstance(rv, int) else 0)
 
+    def command(self, *args, **kwargs):
+        kwargs.setdefault("cls", _Command)
+        return super().command(*args, **kwargs)
+
 
 app = _Cli(
+    cls=_flags_take_no_value(TyperGroup),
     add_completion=False,
     no_args_is_help=True,
     help="Cooperative tracking and radio-jamming of a rogue drone by a team of pursuer drones.",
@@ -348,7 +373,7 @@ def experiment(
     steps: int = typer.Option(30, "--steps", help="Steps per trial (the paper: 30)."),
     seed: int = typer.Option(0, "--seed", help="Experiment seed; each trial's seed derives from it."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: CPU count)."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, tcp://HOST:PORT."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, SCHEME://HOST:PORT with tcp, tls, ws or wss."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
     grid: Optional[str] = typer.Option(None, "--grid", help="swarm only: TARGETSxAGENTS, e.g. 1-4x3-6 (the default)."),
