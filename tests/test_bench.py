@@ -103,3 +103,20 @@ def test_the_run_benchmark_times_a_several_target_preset_through_the_swarm_engin
     r = bench_run("exact", repeats=1, steps=2, preset="swarm-3")
     assert r["name"] == "run swarm-3 (exact)" and r["steps"] == 2 and r["repeats"] == 1
     assert r["step_ms_median"] >= r["solve_ms_median"] > 0.0
+
+
+def test_the_control_module_prints_its_help_and_refuses_an_unknown_argument(capsys):
+    import subprocess
+    import sys
+
+    from trackjam.benchmarks import control
+
+    # --help ran the quick benchmarks (16 s) and printed their JSON
+    r = subprocess.run([sys.executable, "-m", "trackjam.benchmarks.control", "--help"], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.startswith("usage: python -m trackjam.benchmarks.control")
+    assert "--full" in r.stdout and "exact_79" not in r.stdout
+    for argv in (["--ful"], ["--full", "extra"]):  # was ignored; --ful is no abbreviation of --full either
+        with pytest.raises(SystemExit) as exit:
+            control.main(argv)
+        assert exit.value.code == 2
+        assert f"unrecognized arguments: {argv[-1]}" in capsys.readouterr().err

@@ -282,8 +282,20 @@ def run(quick: bool = True, seed: int = 0) -> dict:
     }
 
 
-if __name__ == "__main__":
+def main(argv: list[str] | None = None) -> None:
+    """``python -m trackjam.benchmarks.control [--full]``: the control figures alone, as JSON
+    (``--help`` ran the benchmarks, and an unknown argument such as ``--ful`` was ignored)."""
+    import argparse
     import json
-    import sys
 
-    print(json.dumps(run(quick="--full" not in sys.argv), indent=1))
+    parser = argparse.ArgumentParser(
+        prog="python -m trackjam.benchmarks.control", allow_abbrev=False,
+        description="Run the control benchmarks of `trackjam bench` alone and print their figures as JSON.",
+    )
+    parser.add_argument("--full", action="store_true", help="the full repetitions (minutes) instead of the quick ones")
+    args = parser.parse_args(argv)
+    print(json.dumps(run(quick=not args.full), indent=1))
+
+
+if __name__ == "__main__":
+    main()
