@@ -277,3 +277,17 @@ def test_help_shows_no_value_beside_a_flag(args, flags):
 def test_experiment_help_lists_every_scheduler_scheme():
     words = " ".join(_help("experiment").replace("│", " ").split())
     assert "SCHEME://HOST:PORT with tcp, tls, ws or wss" in words
+
+
+@pytest.mark.parametrize("typo, preset", [("paper_fig3", "paper-fig3"), ("swarm3", "swarm-3"), ("Paper-Fig3", "paper-fig3")])
+def test_a_misspelt_preset_gets_a_did_you_mean(typo, preset, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(app, ["validate", typo])
+    assert r.exit_code == 2
+    assert r.output == f"trackjam: error: {typo}: no such file (and no preset of that name; did you mean {preset}?)\n"
+
+
+def test_a_name_far_from_every_preset_points_to_the_list(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = runner.invoke(app, ["validate", "nothing-like-it"])
+    assert r.exit_code == 2 and "did you mean" not in r.output and "see `trackjam presets`" in r.output

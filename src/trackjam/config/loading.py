@@ -177,6 +177,15 @@ def preset_names() -> list[str]:
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
 
 
+def _close_preset(name: str) -> str | None:
+    """The preset a misspelt name most likely meant (``paper_fig3``, ``swarm3``, ``Paper-Fig3``),
+    as :func:`_unknown_key` hints a key; None for a path or when none is close."""
+    if "/" in name or "\\" in name:
+        return None
+    close = difflib.get_close_matches(name.lower().replace("_", "-"), preset_names(), n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
 def _preset_data(name: str) -> dict:
     return _yaml(resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text())
 
@@ -184,7 +193,9 @@ def _preset_data(name: str) -> dict:
 def _read_text(path: Path) -> str:
     """The file's text, read at most ``MAX_FILE_BYTES`` deep (``/dev/zero`` never ends)."""
     if not path.exists():
-        raise ConfigError(f"{path}: no such file (and no preset of that name; see `trackjam presets`)")
+        close = _close_preset(str(path))
+        hint = f"did you mean {close}?" if close else "see `trackjam presets`"
+        raise ConfigError(f"{path}: no such file (and no preset of that name; {hint})")
     if path.is_dir():
         raise ConfigError(f"{path}: is a folder, not a scenario file")
     if stat.S_ISFIFO(path.stat().st_mode) or stat.S_ISSOCK(path.stat().st_mode):
