@@ -291,3 +291,28 @@ def test_a_name_far_from_every_preset_points_to_the_list(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     r = runner.invoke(app, ["validate", "nothing-like-it"])
     assert r.exit_code == 2 and "did you mean" not in r.output and "see `trackjam presets`" in r.output
+
+
+@pytest.mark.parametrize("name", ["table1", "swarm"])
+def test_an_experiments_bad_set_is_named_as_run_names_it(name, tmp_path):
+    # it said "base scenario of the experiment (preset paper-fig3 with --set): antena: ..."
+    r = runner.invoke(app, ["experiment", name, "--set", "antena.pointing=aim", "--out", str(tmp_path / "e")])
+    assert r.exit_code == 2
+    line = "--set antena.pointing=aim: antena: unknown key (did you mean antenna?)"
+    assert r.output == f"trackjam: error: {line}\n"
+    assert runner.invoke(app, ["run", "--set", "antena.pointing=aim"]).output == r.output
+    assert not (tmp_path / "e").exists()
+
+
+def test_an_option_the_swarm_engine_does_not_simulate_is_blamed_on_its_set(tmp_path):
+    problem = "comms.loss: 0.1 is not simulated with several targets yet; the swarm engine runs with 0.0"
+    for command in ("validate", "run"):
+        r = runner.invoke(app, [command, "swarm-3", "--set", "comms.loss=0.1", "--set", "steps=2"])
+        assert r.exit_code == 2 and r.output == f"trackjam: error: --set comms.loss=0.1: {problem}\n"
+    # set by a file, it is the file's (the message names its key, as before)
+    from trackjam.config import load_scenario, scenario_to_yaml
+
+    f = tmp_path / "lossy.yaml"
+    f.write_text(scenario_to_yaml(load_scenario("swarm-3", ["comms.loss=0.1"])))
+    r = runner.invoke(app, ["validate", str(f), "--set", "steps=2"])
+    assert r.exit_code == 2 and r.output == f"trackjam: error: {problem}\n"

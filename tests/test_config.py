@@ -155,6 +155,28 @@ def test_values_past_their_physical_bounds_are_refused_in_one_line(override, key
     assert msg.startswith(f"--set {override[:20]}")  # blamed on the --set, not on the preset
 
 
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        # pydantic said "agents.initial.1.2: Field required"
+        ("agents.initial=[[10,10,10],[10,10]]", "agents.initial.1: expected 3 coordinates (x, y, z), got 2"),
+        ("agents.initial=[[10,10,10,4]]", "agents.initial.0: expected 3 coordinates (x, y, z), got 4"),
+        ("agents.initial_aim=[1]", "agents.initial_aim: expected 3 coordinates (x, y, z), got 1"),
+        ("area.low=[0,0]", "area.low: expected 3 coordinates (x, y, z), got 2"),
+        ("area.high=[100,100,100,100]", "area.high: expected 3 coordinates (x, y, z), got 4"),
+        ("target.initial=[1,2,3]", "target.initial: expected 6 values (x, y, z, vx, vy, vz), got 3"),
+        ("target.response={home: [1,2]}", "target.response.home: expected 3 coordinates (x, y, z), got 2"),
+        ("sensor.noise_std=[1]", "sensor.noise_std: expected 3 standard deviations (range, azimuth, inclination), got 1"),
+        ("target.occlusions=[[3]]", "target.occlusions.0: expected 2 steps (first, last), got 1"),
+        ("targets=[{initial: [1,2]}]", "targets.0.initial: expected 6 values (x, y, z, vx, vy, vz), got 2"),
+    ],
+)
+def test_a_vector_of_the_wrong_length_says_how_many_values_it_needs(override, message):
+    with pytest.raises(ConfigError) as info:
+        load_scenario("paper-fig3", [override])
+    assert str(info.value) == f"--set {override}: {message}"
+
+
 def test_a_float_that_is_an_integer_is_read_as_one_and_written_back_as_an_int():
     s = load_scenario("paper-fig3", ["steps=5.0", "filter.particles=2e3"])
     assert s.steps == 5 and s.filter.particles == 2000 and type(s.filter.particles) is int

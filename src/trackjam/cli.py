@@ -174,13 +174,19 @@ def _warn(s) -> None:
         typer.echo(f"trackjam: warning: {line}", err=True)
 
 
-def _runnable(s) -> None:
+def _runnable(s, overrides: list[str] | None) -> None:
     """Refuse, in one line, an option the engine that runs ``s`` does not simulate (several
-    targets run on the swarm engine, which reads fewer options): `validate` says so as `run` would."""
+    targets run on the swarm engine, which reads fewer options): `validate` says so as `run` would,
+    blaming the ``--set`` that set it as a bad value is."""
     if len(s.target_list) > 1:  # simulation.build's several_targets, without importing the engine (0.5 s)
+        from trackjam.config.loading import blamed_on_set
+        from trackjam.errors import ConfigError
         from trackjam.simulation.build import build_swarm
 
-        build_swarm(s)
+        try:
+            build_swarm(s)
+        except ConfigError as err:
+            raise ConfigError(blamed_on_set(str(err), overrides)) from None
 
 
 @app.command()
@@ -217,7 +223,7 @@ def validate(
 ) -> None:
     """Check a scenario file; print `ok` or one line naming the key and the problem."""
     s = _load(file, set_, warn=False)
-    _runnable(s)
+    _runnable(s, set_)
     _warn(s)
     typer.echo(f"ok: {s.name}, {s.n_agents} agents, {s.steps} steps")
 
@@ -265,7 +271,7 @@ def run(
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
     s = _load(scenario, set_, seed, warn=False)
-    _runnable(s)
+    _runnable(s, set_)
     default = out is None
     out = out or Path("runs") / f"{s.name}-seed{s.seed}"
     from trackjam.simulation.output import check_out_dir

@@ -131,14 +131,47 @@ def _unknown_key(loc: tuple) -> str:
     return f"unknown key (did you mean {'.'.join(map(str, (*loc[:-1], close[0])))}?)"
 
 
+# what the items of a fixed-length list are, by its key's last name and length (else by length)
+_TUPLE_ITEMS = {
+    ("initial", 6): "values (x, y, z, vx, vy, vz)",
+    ("noise_std", 3): "standard deviations (range, azimuth, inclination)",
+    ("occlusions", 2): "steps (first, last)",
+}
+
+
+def _tuple_length(loc: tuple, e: dict, lengths: dict[tuple, int]) -> bool:
+    """Note in ``lengths`` the length a fixed-length list at ``loc`` expects, when ``e`` says it
+    has too few items (pydantic: "Field required" per missing item) or too many; True if so."""
+    if e["type"] == "missing" and loc and isinstance(loc[-1], int) and isinstance(e.get("input"), (list, tuple)):
+        lengths[loc[:-1]] = max(lengths.get(loc[:-1], 0), loc[-1] + 1)
+        return True
+    if e["type"] == "too_long" and (e.get("ctx") or {}).get("field_type") == "Tuple":
+        lengths[loc] = e["ctx"]["max_length"]
+        return True
+    return False
+
+
+def _length_message(loc: tuple, expected: int, got: Any) -> str:
+    name = next((p for p in reversed(loc) if isinstance(p, str)), "")
+    items = _TUPLE_ITEMS.get((name, expected), "coordinates (x, y, z)" if expected == 3 else "items")
+    return f"expected {expected} {items}, got {len(got)}"
+
+
 def _errors(err: ValidationError) -> list[tuple[str, str]]:
-    """(dotted key or "", message) of every problem pydantic found."""
-    out = []
+    """(dotted key or "", message) of every problem pydantic found; a fixed-length list of the
+    wrong length is one problem saying so (pydantic: "agents.initial.1.2: Field required")."""
+    out, lengths, inputs = [], {}, {}
     for e in err.errors():
         loc = tuple(p for p in e["loc"] if not str(p).startswith("function-"))
+        if _tuple_length(loc, e, lengths):
+            where = loc[:-1] if e["type"] == "missing" else loc
+            if where not in inputs:
+                inputs[where] = e["input"]
+                out.append((".".join(str(p) for p in where), where))
+            continue
         msg = _unknown_key(loc) if e["type"] == "extra_forbidden" else e["msg"].removeprefix("Value error, ")
         out.append((".".join(str(p) for p in loc), " ".join(msg.split())))
-    return out
+    return [(key, _length_message(msg, lengths[msg], inputs[msg]) if isinstance(msg, tuple) else msg) for key, msg in out]
 
 
 def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
@@ -371,6 +404,15 @@ def overridden_keys(overrides: list[str] | None) -> dict[str, str]:
     return {item.partition("=")[0].strip(): item for item in overrides or [] if "=" in item}
 
 
+def blamed_on_set(message: str, overrides: list[str] | None) -> str:
+    """A one-line problem ``"key: ..."`` found after validation (an option the engine does not
+    simulate) prefixed with the ``--set`` item that set its key, as :func:`validate_scenario`
+    blames one; unchanged when no ``--set`` set it."""
+    key, sep, _ = message.partition(": ")
+    item = _blamed(key, message, overridden_keys(overrides)) if sep and " " not in key else None
+    return f"--set {shortened(item, SET_SHOWN)}: {message}" if item else message
+
+
 def _deep_copy(d: Any) -> Any:
     if isinstance(d, dict):
         return {k: _deep_copy(v) for k, v in d.items()}
@@ -394,6 +436,10 @@ def load_scenario(
 
     Keyword ``fields`` set keys too, ``__`` standing for the dot
     (``load_scenario("paper-fig3", steps=5, control__solver="exact")``).
+
+    A problem with a key an override set is named as the command line names it,
+    ``--set antena.height=3: antena: unknown key (did you mean antenna?)``: the overrides are
+    ``--set`` items, and one wording serves both (the tests and the README quote it).
     """
     overrides = _items(overrides)
     data, label = load_scenario_data(name_or_path)

@@ -39,6 +39,7 @@ from trackjam.config import (
     set_dotted,
     validate_scenario,
 )
+from trackjam.config.loading import overridden_keys
 from trackjam.errors import ConfigError
 from trackjam.experiments.experiment import (  # noqa: F401  (the experiments' vocabulary, from here too)
     BASE_PRESET,
@@ -284,9 +285,11 @@ def trial_scenario(
     return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}")
 
 
-def base_scenario(base: dict, preset: str = BASE_PRESET) -> Scenario:
-    """The base scenario validated (so a bad --set fails here, before any trial)."""
-    return validate_scenario(base, f"base scenario of the experiment (preset {preset} with --set)")
+def base_scenario(base: dict, preset: str = BASE_PRESET, overrides: list[str] | None = None) -> Scenario:
+    """The base scenario validated (so a bad --set fails here, before any trial); a problem with
+    a key one of ``overrides`` set is blamed on that ``--set`` item, as `trackjam run` does."""
+    return validate_scenario(base, f"base scenario of the experiment (preset {preset} with --set)",
+                             overridden_keys(overrides))
 
 
 def draw_for(base: dict, seed: int, k: int) -> TrialDraw:

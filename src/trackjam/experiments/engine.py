@@ -23,6 +23,7 @@ from typing import Any, Callable, Mapping
 import trackjam
 from trackjam.config import Scenario
 from trackjam.config.limits import check_seed, check_trial_runs, check_workers, run_memory
+from trackjam.config.loading import blamed_on_set
 from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
@@ -204,14 +205,17 @@ def _names(names: list[str], shown: int = 3) -> str:
 def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str]):
     """Every (config, trial) scenario, built and so validated, and the configuration columns."""
     base = base_data(experiment, steps, overrides)
+    space = base_scenario(base, experiment.preset, overrides)  # a bad --set is named here, before any trial
     if experiment.trials == SWARM:
-        space = base_scenario(base, experiment.preset)
         # trial-major: a sweep stopped early leaves every cell with the same trials
         scenarios = {(c.index, k): swarm_scenario(experiment, space, base, c, k, seed)
                      for k in range(trials) for c in experiment.configurations}
         for c in experiment.configurations:  # an option the swarm engine does not read: refused here, not by a worker
             if several_targets(scenarios[(c.index, 0)]):
-                build_swarm(scenarios[(c.index, 0)])
+                try:
+                    build_swarm(scenarios[(c.index, 0)])
+                except ConfigError as err:
+                    raise ConfigError(blamed_on_set(str(err), overrides)) from None
     else:
         draws = [draw_for(base, seed, k) for k in range(trials)]
         scenarios = {
