@@ -246,10 +246,11 @@ def _step_progress(total: int, label: str):
 
 
 def _warm_up(s) -> None:
-    """Compile the scenario's kernels before the timed run, saying so (numba is silent)."""
+    """Load (or, on a first run, compile) the scenario's kernels before the timed run, saying so
+    (numba is silent). The line cannot know which it will be: it said "compiling" every time."""
     from trackjam.simulation.warmup import warm_up
 
-    message = "compiling kernels (first run only; later runs load them from the cache)"
+    message = "loading the compiled kernels (compiling them on the first run only, 6-12 s)"
     if sys.stdout.isatty():
         from rich.console import Console
 

@@ -190,6 +190,6 @@ def test_markup_in_an_out_path_is_printed_literally_and_the_warm_up_is_announced
     assert r.returncode == 0, r.stderr
     assert "Traceback" not in r.stderr and (out / "steps.parquet").is_file()
     lines = r.stdout.splitlines()
-    assert lines[0].startswith("compiling kernels (first run only")
+    assert lines[0] == "loading the compiled kernels (compiling them on the first run only, 6-12 s)"
     assert lines[1] == "paper-fig3: step 1/4"
     assert lines[-1] == f"wrote 5 files to {out}"
