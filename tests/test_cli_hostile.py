@@ -38,9 +38,9 @@ def _one_line(r: subprocess.CompletedProcess) -> str:
 )
 def test_validate_refuses_what_the_swarm_engine_does_not_simulate_as_run_does(tmp_path, item, key):
     line = _one_line(_trackjam("validate", "swarm-3", "--set", item))
-    assert line.startswith(f"trackjam: error: {key}:") and "several targets" in line
+    assert line.startswith(f"trackjam: error: --set {item}: {key}:") and "several targets" in line
     line = _one_line(_trackjam("run", "swarm-3", "--set", item, "--out", str(tmp_path / "out")))
-    assert f"{key}:" in line
+    assert line.startswith(f"trackjam: error: --set {item}: {key}:")
     assert not (tmp_path / "out").exists()
 
 

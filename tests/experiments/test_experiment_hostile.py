@@ -5,6 +5,7 @@ written."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -61,7 +62,7 @@ def test_the_cli_refuses_a_million_workers_in_one_line(tmp_path):
                                        ("control.plan_over=belief", "control.plan_over")])
 def test_an_option_the_swarm_engine_does_not_read_is_refused_before_out_is_claimed(tmp_path, item, key):
     # before: experiment.json and trials/ were written, then every trial failed in its worker
-    with pytest.raises(ConfigError, match=rf"^{key}: .* several targets"):
+    with pytest.raises(ConfigError, match=rf"^--set {re.escape(item)}: {key}: .* several targets"):
         run_experiment("swarm", grid="2x2", trials=1, steps=2, workers=1, progress="none", out=tmp_path / "e",
                        overrides=[item])
     assert not (tmp_path / "e").exists()
