@@ -42,19 +42,19 @@ def experiment_command(
         name, trials=trials, steps=steps, seed=seed, workers=workers, scheduler=scheduler,
         out=out if out is not None else Path("runs") / f"experiment-{name}", overrides=overrides, grid=grid,
     )
-    # escaped: rich read a [bracketed] part of the --out path or of a label as markup and dropped it
+    # escaped: rich read a [bracketed] part of the --out path as markup and dropped it
     table = Table(title=escape(f"{name}: mean ± 95% CI over trials ({result.out / 'summary.csv'})"))
     table.add_column("#", justify="right")
     table.add_column("configuration")
     table.add_column("trials", justify="right")
     experiment = get_experiment(name, grid)
     for stem, _, _ in experiment.metrics + experiment.counts:
-        table.add_column(escape(stem), justify="right")
+        table.add_column(stem, justify="right")
     table.add_column("step [s]", justify="right")
     for row, timing in zip(result.summary, result.timing):
         cells = [_mean_ci(row[f"{s}_mean"], row[f"{s}_ci95"]) for s, _, _ in experiment.metrics]
         cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
-        table.add_row(str(row["config"]), escape(row["label"]), str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
+        table.add_row(str(row["config"]), row["label"], str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
     Console(width=220).print(table)
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")
