@@ -310,3 +310,28 @@ def test_a_run_seed_out_of_range_blames_the_option_not_the_preset(tmp_path, seed
     line = _one_line(_trackjam("run", "paper-fig3", "--seed", seed, "--out", str(tmp_path / "out")))
     assert line == f"trackjam: error: --seed {seed}: must be an integer in [0, 2^63 - 1]"
     assert not (tmp_path / "out").exists()
+
+
+def test_the_experiment_closing_table_names_its_units_and_shows_shares_in_percent(tmp_path):
+    """Every column says its unit (rich read "[s]" in "step [s]" as strike-through markup and
+    dropped it), shares are percentages as in the README's tables, the step time is in ms."""
+    import csv
+
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.experiments.cli import _mean_ci
+
+    out = tmp_path / "e"
+    r = CliRunner().invoke(cli.app, ["experiment", "holding", "--trials", "2", "--steps", "2", "--workers", "1",
+                                     "--out", str(out), *_sets(["filter.particles=100", "filter.birth_particles=20"])],
+                           terminal_width=400)
+    assert r.exit_code == 0, r.output
+    for header in ("held [%]", "false_track [%]", "ospa [m]", "incidents [steps]", "step [ms]"):
+        assert header in r.output, header
+    row = next(csv.DictReader(open(out / "summary.csv")))
+    line = next(x for x in r.output.splitlines() if "paper, pointing: truth" in x and "│" in x)
+    assert f"{100 * float(row['held_mean']):.3g}" in line
+    timing = next(csv.DictReader(open(out / "timing.csv")))
+    assert f"{1000 * float(timing['step_s_mean']):.3g}" in line
+    assert _mean_ci(0.667, 4.2, 100.0) == "66.7 ± 420" and _mean_ci(0.5, 0.03, 100.0) == "50 ± 3"

@@ -54,8 +54,7 @@ def test_the_python_api_blocks_run_as_written(tmp_path):
 def test_the_learning_environment_blocks_run_as_written(tmp_path):
     env_block = _block("parallel_env(")
     compare = _block("rollout(env, my_policy, seeds)")
-    # my_policy is the reader's own controller; the random policy stands in for it
-    code = env_block + "\nmy_policy = random_policy(env)\n" + compare + "\nprint(len(paired), result.summary['steps'])\n"
+    code = env_block + "\n" + compare + "\nprint(len(paired), result.summary['steps'])\n"
     out = _run(code, tmp_path)
     n, steps = out.split()
     assert int(n) == 10 and int(steps) >= 1
@@ -71,3 +70,34 @@ def test_the_readmes_swarm_3_table_is_what_the_run_prints(tmp_path):
     assert r.exit_code == 0, r.output
     printed = closing_table_rows(r.output)
     assert {k: printed.get(k) for k in shown} == shown
+
+
+def test_the_readmes_policy_table_rows_are_what_rollout_gives_today():
+    """The learning environment's table (10 seeds of paper-fig3): its fast rows, recomputed with
+    the README's own rollout code, read as the README prints them (mean ± 95 % interval)."""
+    import numpy as np
+    from scipy import stats
+
+    import trackjam
+    from trackjam.env import parallel_env, random_policy, rollout, solver_policy
+
+    part = README.split("What the policies score", 1)[1].split("\n\n", 2)[1]
+    rows, pointing = {}, None
+    for line in part.splitlines()[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        pointing = cells[0].split("`")[1] if cells[0] else pointing
+        rows[(pointing, cells[1])] = cells[2:5]
+
+    def shown(x):
+        x = np.asarray(x, dtype=float)
+        half = stats.t.ppf(0.975, len(x) - 1) * x.std(ddof=1) / np.sqrt(len(x))
+        return f"{x.mean():.1f} ± {half:.1f}"
+
+    for pointing, name in [("aim", "exact"), ("aim", "random"), ("truth", "random")]:
+        env = parallel_env(trackjam.load_scenario("paper-fig3", [f"antenna.pointing={pointing}"]), jam_penalty=1.0)
+        policy = random_policy(env) if name == "random" else solver_policy(env, name)
+        episodes = rollout(env, policy, range(1, 11))
+        ret, pen = [e["return"] for e in episodes], [e["penalty"] for e in episodes]
+        want_ret, _, want_pen = rows[(pointing, name)]
+        assert shown(ret) == want_ret, (pointing, name)
+        assert want_pen == "0" if not any(pen) else shown(pen) == want_pen, (pointing, name)

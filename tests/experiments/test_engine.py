@@ -11,6 +11,7 @@ import json
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from trackjam.experiments.definitions import get_experiment
@@ -196,3 +197,29 @@ def test_an_unreachable_scheduler_fails_with_a_clear_error_in_seconds(tmp_path):
         run_experiment("constraints", scheduler=address, out=tmp_path, **SWEEP)
     assert time.monotonic() - t0 < 20  # a guard against a hang, not a benchmark
     assert "\n" not in str(err.value)
+
+
+def test_a_worker_warms_up_once_per_configuration_before_timing_and_the_record_is_unchanged(monkeypatch):
+    """run_trial runs the scenario's warm-up twin before a process's first trial of each
+    configuration of our own trials (so compilation is not timed in step_s), once only, never
+    for a trial function of the caller's, and the record is the one without the warm-up."""
+    import trackjam.experiments.engine as engine
+    import trackjam.simulation.warmup as warmup
+    from trackjam.config.loading import load_scenario
+
+    s = load_scenario("paper-fig3", ["steps=2", "filter.particles=200", "filter.birth_particles=50",
+                                     "control.solver=exact"], seed=3)
+    cold = engine.run_trial(engine.simulate_trial, "x", 1, 0, s)  # the record with nothing warmed
+    calls = []
+    real = warmup.warm_up
+    monkeypatch.setattr(warmup, "warm_up", lambda sc: (calls.append(sc.name), real(sc)))
+    monkeypatch.setattr(engine, "_WARMED", set())
+    warm = engine.run_trial(engine.simulate_trial, "table1", 1, 0, s)
+    engine.run_trial(engine.simulate_trial, "table1", 1, 1, s)
+    engine.run_trial(engine.simulate_trial, "table1", 2, 0, s)
+    assert len(calls) == 2  # configurations 1 and 2, once each
+    engine.run_trial(lambda sc: {"x": 1.0}, "table1", 3, 0, s)
+    assert len(calls) == 2  # a caller's trial function is not ours to warm
+    timing = {"step_s_mean", "solve_s_mean", "steps", "experiment"}
+    same = [k for k in cold if k not in timing]
+    assert same and all(np.array_equal(np.asarray(cold[k]), np.asarray(warm[k]), equal_nan=True) for k in same)

@@ -479,7 +479,7 @@ class BernoulliFilter:
         measurement). While a target is new, they carry well under 1% of the mass next to the
         diffuse "somewhere else in the area" part, so plain resampling keeps a few dozen of
         them, too few to find the velocity, unobserved at a first detection. When their share
-        would give them fewer than ``min(n_b, n / 5)`` slots, the two parts are resampled
+        would give them fewer than ``min(RESERVE_CAP n_b, RESERVE_SHARE n)`` = ``min(3 n_b, 0.4 n)`` slots, the two parts are resampled
         separately (ours): the supported part gets that many slots, the rest the others, each
         slot weighted by its part's mass over its slot count. The weighted set represents the
         same density; once the target is tracked the supported part dominates and this is

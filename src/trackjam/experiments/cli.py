@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 from trackjam.experiments.engine import run_experiment
@@ -48,20 +49,39 @@ def experiment_command(
     table.add_column("configuration")
     table.add_column("trials", justify="right")
     experiment = get_experiment(name, grid)
-    for stem, _, _ in experiment.metrics + experiment.counts:
+    for stem, key, description in experiment.metrics:
+        table.add_column(escape(f"{stem} [{_unit(key, description)}]" if _unit(key, description) else stem),
+                         justify="right")
+    for stem, _, _ in experiment.counts:
         table.add_column(stem, justify="right")
-    table.add_column("step [s]", justify="right")
+    table.add_column(escape("step [ms]"), justify="right")
     for row, timing in zip(result.summary, result.timing):
-        cells = [_mean_ci(row[f"{s}_mean"], row[f"{s}_ci95"]) for s, _, _ in experiment.metrics]
+        cells = [_mean_ci(row[f"{s}_mean"], row[f"{s}_ci95"], 100.0 if _unit(key, d) == "%" else 1.0)
+                 for s, key, d in experiment.metrics]
         cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
-        table.add_row(str(row["config"]), row["label"], str(row["trials"]), *cells, f"{timing['step_s_mean']:.3g}")
+        table.add_row(str(row["config"]), escape(row["label"]), str(row["trials"]), *cells,
+                      f"{1000 * timing['step_s_mean']:.3g}")
     Console(width=220).print(table)
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")
 
 
-def _mean_ci(mean, ci) -> str:
-    """``mean ± ci``; one trial has no interval (it printed "± nan"), no value prints "-"."""
+def _unit(key: str, description: str) -> str:
+    """A metric's unit in the closing table: % for a share (printed as a percentage, as the
+    README's tables show them), else the one its description names in brackets, if any."""
+    if key.endswith("_share"):
+        return "%"
+    found = re.search(r"\[([^\]]+)\]", description)
+    return found.group(1) if found else ""
+
+
+def _mean_ci(mean, ci, scale: float = 1.0) -> str:
+    """``mean ± ci`` (both times ``scale``); one trial has no interval (it printed "± nan"), no
+    value prints "-"."""
     if mean is None or not math.isfinite(mean):
         return "-"
-    return f"{mean:.3g}" if ci is None or not math.isfinite(ci) else f"{mean:.3g} ± {ci:.2g}"
+    mean = mean * scale
+    if ci is None or not math.isfinite(ci):
+        return f"{mean:.3g}"
+    ci = ci * scale
+    return f"{mean:.3g} ± {ci:.0f}" if ci >= 10 else f"{mean:.3g} ± {ci:.2g}"  # no 4.2e+02 for 420

@@ -37,6 +37,7 @@ from trackjam.experiments.definitions import (
     swarm_scenario,
     trial_scenario,
 )
+from trackjam.experiments.swarm import swarm_trial
 from trackjam.experiments.progress import make_reporter
 from trackjam.simulation.build import build_swarm, several_targets
 from trackjam.experiments.summary import (
@@ -72,9 +73,24 @@ def simulate_trial(scenario: Scenario) -> dict[str, Any]:
     return record
 
 
+_SIMULATING = (simulate_trial, swarm_trial)  # the trials that run our engines, warmed up first
+_WARMED: set[tuple[str, int]] = set()  # (experiment, configuration) this process has warmed up
+
+
 def run_trial(trial: TrialFunction, experiment: str, config: int, index: int, scenario: Scenario) -> dict:
-    """Worker side of one trial: the record the client writes to ``OUT/trials/``."""
+    """Worker side of one trial: the record the client writes to ``OUT/trials/``.
+
+    Before its first trial of a configuration, a process runs the scenario's warm-up twin
+    (:func:`trackjam.simulation.warmup.warm_up`, as ``trackjam run`` does) when the trial is a
+    simulation of ours, so that numba's compilation (or its loading from the cache) is not timed
+    in ``step_s``: a first sweep's timing.csv read about ten times the steps' cost before. The
+    twin shares no random stream with the trial, so the record is the same either way."""
     one_numba_thread()
+    if trial in _SIMULATING and (experiment, config) not in _WARMED:
+        from trackjam.simulation.warmup import warm_up
+
+        warm_up(scenario)
+        _WARMED.add((experiment, config))
     record = dict(trial(scenario))
     record.update(experiment=experiment, config=config, trial=index, seed=scenario.seed)
     return record
@@ -288,6 +304,9 @@ def run_experiment(
         records = [found[key] for key in sorted(found)]
         todo = [key for key in scenarios if key not in found]
         report.start(records)
+        if todo and trial in _SIMULATING:
+            report.note("each worker compiles the kernels, or loads them from numba's cache, before its first "
+                        "trial of a configuration (untimed; the first run on a machine compiles for up to a minute)")
         pending: set[Future] = set()
         queue = iter(todo)
         try:

@@ -35,7 +35,7 @@ class _Reporter:
         return "running means: " + ", ".join(parts)
 
     def note(self, line: str) -> None:
-        """One line about what a resume found (damaged or foreign files), on stderr."""
+        """One line on stderr: what a resume found (damaged or foreign files), or what the workers do first."""
         print(f"{self.name}: {line}", file=sys.stderr, flush=True)
 
     def start(self, records: list[Mapping[str, Any]]) -> None:
