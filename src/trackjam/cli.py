@@ -179,14 +179,9 @@ def _runnable(s, overrides: list[str] | None) -> None:
     targets run on the swarm engine, which reads fewer options): `validate` says so as `run` would,
     blaming the ``--set`` that set it as a bad value is."""
     if len(s.target_list) > 1:  # simulation.build's several_targets, without importing the engine (0.5 s)
-        from trackjam.config.loading import blamed_on_set
-        from trackjam.errors import ConfigError
-        from trackjam.simulation.build import build_swarm
+        from trackjam.simulation.build import check_swarm_options
 
-        try:
-            build_swarm(s)
-        except ConfigError as err:
-            raise ConfigError(blamed_on_set(str(err), overrides)) from None
+        check_swarm_options(s, overrides)
 
 
 @app.command()

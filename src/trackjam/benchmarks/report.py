@@ -95,7 +95,6 @@ def _tables(group: str, rows: list[dict]) -> list:
 
 def _print(group: str, rows: list[dict]) -> None:
     from rich.console import Console
-
     from rich.markup import escape
 
     console = Console(width=160)

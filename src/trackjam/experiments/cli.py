@@ -49,15 +49,15 @@ def experiment_command(
     table.add_column("configuration")
     table.add_column("trials", justify="right")
     experiment = get_experiment(name, grid)
-    for stem, key, description in experiment.metrics:
-        table.add_column(escape(f"{stem} [{_unit(key, description)}]" if _unit(key, description) else stem),
-                         justify="right")
+    units = [_unit(key, description) for _, key, description in experiment.metrics]
+    for (stem, _, _), unit in zip(experiment.metrics, units):
+        table.add_column(escape(f"{stem} [{unit}]" if unit else stem), justify="right")
     for stem, _, _ in experiment.counts:
         table.add_column(stem, justify="right")
     table.add_column(escape("step [ms]"), justify="right")
     for row, timing in zip(result.summary, result.timing):
-        cells = [_mean_ci(row[f"{s}_mean"], row[f"{s}_ci95"], 100.0 if _unit(key, d) == "%" else 1.0)
-                 for s, key, d in experiment.metrics]
+        cells = [_mean_ci(row[f"{s}_mean"], row[f"{s}_ci95"], 100.0 if unit == "%" else 1.0)
+                 for (s, _, _), unit in zip(experiment.metrics, units)]
         cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
         table.add_row(str(row["config"]), escape(row["label"]), str(row["trials"]), *cells,
                       f"{1000 * timing['step_s_mean']:.3g}")

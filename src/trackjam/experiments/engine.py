@@ -23,7 +23,6 @@ from typing import Any, Callable, Mapping
 import trackjam
 from trackjam.config import Scenario
 from trackjam.config.limits import check_seed, check_trial_runs, check_workers, run_memory
-from trackjam.config.loading import blamed_on_set
 from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
@@ -39,7 +38,7 @@ from trackjam.experiments.definitions import (
 )
 from trackjam.experiments.swarm import swarm_trial
 from trackjam.experiments.progress import make_reporter
-from trackjam.simulation.build import build_swarm, several_targets
+from trackjam.simulation.build import check_swarm_options, several_targets
 from trackjam.experiments.summary import (
     TIMING,
     DamagedTrial,
@@ -228,10 +227,7 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
                      for k in range(trials) for c in experiment.configurations}
         for c in experiment.configurations:  # an option the swarm engine does not read: refused here, not by a worker
             if several_targets(scenarios[(c.index, 0)]):
-                try:
-                    build_swarm(scenarios[(c.index, 0)])
-                except ConfigError as err:
-                    raise ConfigError(blamed_on_set(str(err), overrides)) from None
+                check_swarm_options(scenarios[(c.index, 0)], overrides)
     else:
         draws = [draw_for(base, seed, k) for k in range(trials)]
         scenarios = {

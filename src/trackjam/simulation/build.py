@@ -280,15 +280,24 @@ def several_targets(s: Scenario) -> bool:
     return len(s.target_list) > 1
 
 
-def build_swarm(s: Scenario) -> SwarmComponents:
-    """The swarm engine's components; an option it does not simulate yet is refused in one line."""
-    is_scenario(s)
+def check_swarm_options(s: Scenario, overrides: list[str] | None = None) -> None:
+    """Refuse, in one line, an option the swarm engine does not simulate yet, blamed on the
+    ``--set`` among ``overrides`` that set it, as a bad value is (`validate`, `run` and the swarm
+    experiment check with this before any work; :func:`build_swarm` without ``overrides``)."""
+    from trackjam.config.loading import blamed_on_set
+
     for key, value, runs in _swarm_unsupported(s):
         if value != runs:
             value = value.model_dump() if hasattr(value, "model_dump") else value
-            raise ConfigError(
-                f"{key}: {value!r} is not simulated with several targets yet; the swarm engine runs with {runs!r}"
-            )
+            raise ConfigError(blamed_on_set(
+                f"{key}: {value!r} is not simulated with several targets yet; the swarm engine runs with {runs!r}",
+                overrides))
+
+
+def build_swarm(s: Scenario) -> SwarmComponents:
+    """The swarm engine's components; an option it does not simulate yet is refused in one line."""
+    is_scenario(s)
+    check_swarm_options(s)
     return SwarmComponents(base=build(s), targets=targets_params(s), ids=target_ids(s), lmb=lmb_params(s),
                            team_objective=s.control.team_objective)
 
