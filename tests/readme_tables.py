@@ -1,16 +1,19 @@
-"""The README's column tables, as the log-schema tests read them."""
+"""The column tables of the README and the docs pages, as the log-schema tests read them."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
-README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+SEVERAL_TARGETS = (ROOT / "docs" / "several-targets.md").read_text()  # the several-target guide
 
 
-def first_column_names(heading: str) -> set[str]:
-    """The names in the first column of the table after ``heading`` (``x_x/y/z`` -> three)."""
-    part = README.split(heading, 1)[1]
+def first_column_names(heading: str, text: str = README) -> set[str]:
+    """The names in the first column of the table after ``heading`` in ``text`` (the README by
+    default; ``x_x/y/z`` -> three)."""
+    part = text.split(heading, 1)[1]
     rows = [line for line in part.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
     names = set()
     for row in rows:

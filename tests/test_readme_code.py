@@ -1,4 +1,4 @@
-"""The README's code runs as written: its Python blocks, and the swarm-3 table it shows.
+"""The README's code runs as written: its Python blocks, and the swarm-3 table the docs show.
 
 The quick start's table is held to the run in tests/test_cli.py; here every ```python block of the
 README is executed, in a fresh interpreter and an empty folder, exactly as a user would paste it
@@ -13,7 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from readme_tables import README, closing_table_rows
+from readme_tables import README, SEVERAL_TARGETS, closing_table_rows
 from typer.testing import CliRunner
 
 from trackjam.cli import app
@@ -60,10 +60,10 @@ def test_the_learning_environment_blocks_run_as_written(tmp_path):
     assert int(n) == 10 and int(steps) >= 1
 
 
-def test_the_readmes_swarm_3_table_is_what_the_run_prints(tmp_path):
-    """The table the README shows for `trackjam run swarm-3` (seed 1) is printed by the run today,
-    row for row (the rows it leaves out aside)."""
-    block = README.split("![swarm-3, seed 1](docs/swarm-3.png)", 1)[1].split("```", 2)[1]
+def test_the_docs_swarm_3_table_is_what_the_run_prints(tmp_path):
+    """The table docs/several-targets.md shows for `trackjam run swarm-3` (seed 1) is printed by the
+    run today, row for row (the rows it leaves out aside)."""
+    block = SEVERAL_TARGETS.split("![swarm-3, seed 1](swarm-3.png)", 1)[1].split("```", 2)[1]
     shown = closing_table_rows(block)
     assert len(shown) >= 10 and "label switches per target" in shown
     r = CliRunner().invoke(app, ["run", "swarm-3", "--out", str(tmp_path / "run"), "--no-figures"])
