@@ -22,9 +22,9 @@ from trackjam.experiments.definitions import (
 )
 
 
-def _scenarios(name, k=0, seed=0, overrides=()):
+def _scenarios(name, k=0, seed=0, overrides=(), steps=30):
     e = get_experiment(name)
-    base = base_data(e, steps=30, overrides=list(overrides))
+    base = base_data(e, steps=steps, overrides=list(overrides))
     d = draw_for(base, seed, k)
     return [trial_scenario(e, base, c, d, seed) for c in e.configurations]
 
@@ -48,7 +48,47 @@ def test_every_configuration_sees_the_same_trial(name):
         assert s.target.initial == ss[0].target.initial
         assert s.agents.initial == ss[0].agents.initial
         assert s.agents.initial_aim == tuple(ss[0].target.initial[:3])
-    assert len({s.seed for s in ss}) == len(ss)  # but its own simulation stream
+    assert len({s.seed for s in ss}) == 1  # and the same random streams (common random numbers)
+    assert len({s.seed for s in _scenarios(name, k=5, seed=9)} | {ss[0].seed}) == 2  # another trial: others
+
+
+@pytest.mark.parametrize("name", ["table1", "constraints"])
+def test_every_configuration_of_a_trial_faces_the_same_truth(name):
+    """Common random numbers: the truth's random walk of trial k does not depend on the
+    configuration (the target does not answer jamming here), so the comparison is paired on it."""
+    from trackjam.simulation.loop import simulate
+
+    paths = []
+    for s in _scenarios(name, k=2, seed=3, steps=6, overrides=["filter.particles=300", "filter.birth_particles=60",
+                                                               "control.solver=exact"]):
+        steps = simulate(s).steps
+        paths.append(np.stack([steps["truth_x"], steps["truth_y"], steps["truth_z"]], axis=1))
+    for path in paths[1:]:
+        np.testing.assert_array_equal(path, paths[0])
+
+
+def _pairs(name):
+    return {label: (a, b) for a, b, label in get_experiment(name).pairs}
+
+
+def test_the_paired_comparisons_are_the_papers_questions():
+    t1 = _pairs("table1")
+    assert t1["80 deg: 11 -> 79 controls"] == (2, 6) and t1["120 deg: 11 -> 79 controls"] == (4, 8)
+    assert t1["11 controls: 60 -> 80 deg"] == (1, 2) and t1["79 controls: 100 -> 120 deg"] == (7, 8)
+    assert t1["11 controls: 60 -> 120 deg"] == (1, 4) and t1["79 controls: 60 -> 120 deg"] == (5, 8)
+    assert len(t1) == 4 + 2 * 4
+    assert _pairs("constraints") == {"constraints on -> off": (1, 2)}
+    assert _pairs("solvers") == {"grasp -> exact": (1, 2)}
+    holding, n = _pairs("holding"), len(HOLDING_VARIANTS)
+    assert holding["paper, pointing: aim -> preset pursuit"] == (2, n)
+    assert holding["paper, pointing: aim -> paper, pointing: truth"] == (2, 1)
+    assert holding["paper, pointing: truth -> preset pursuit"] == (1, n) and len(holding) == n
+    comms = _pairs("comms")
+    assert comms["loss 0 -> agent 0 breaks down at step 10"] == (1, len(COMMS_VARIANTS))
+    assert len(comms) == len(COMMS_VARIANTS) - 1
+    for name, e in EXPERIMENTS.items():  # every pair names two of the experiment's configurations
+        indices = {c.index for c in e.configurations}
+        assert all(a in indices and b in indices and a != b for a, b, _ in e.pairs), name
 
 
 def test_the_base_is_the_papers_settings_without_occlusions():

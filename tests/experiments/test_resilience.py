@@ -62,6 +62,24 @@ def test_damaged_trials_are_run_again_and_strangers_are_ignored(fresh, tmp_path,
     assert summarise_folder(out).summary == r.summary
 
 
+def test_a_trial_run_with_other_random_streams_is_run_again_and_said_so(fresh, tmp_path, capsys):
+    """A folder from an earlier trackjam, whose trials were seeded otherwise, is not mixed in."""
+    import pyarrow as pa
+
+    out = tmp_path / "stale"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    path = out / "trials" / "c02-t0001.parquet"
+    table = pq.read_table(path)
+    i = table.column_names.index("seed")
+    pq.write_table(table.set_column(i, "seed", pa.array([table.column("seed")[0].as_py() + 1],
+                                                        type=table.schema.field("seed").type)), path)
+    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "progress": "lines"})
+    err = capsys.readouterr().err.splitlines()
+    assert r.ran == 1 and len(err) == 1
+    assert "1 trial file(s)" in err[0] and "other random streams" in err[0] and "c02-t0001.parquet" in err[0]
+    assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
+
+
 def test_reading_a_damaged_trial_names_the_file():
     with pytest.raises(DamagedTrial, match="c01-t0000.parquet"):
         read_trial(Path("/nonexistent/c01-t0000.parquet"))

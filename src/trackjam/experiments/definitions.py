@@ -84,14 +84,22 @@ HOLDING_METRICS: tuple[Metric, ...] = tuple(
 
 
 
+ANGLES = (60.0, 80.0, 100.0, 120.0)  # Table I's opening angles theta_a [deg]
+
+
 def _table1() -> Experiment:
     configurations = []
     for controls, moves in ((11, CONTROLS_11), (79, CONTROLS_79)):
-        for theta_a in (60.0, 80.0, 100.0, 120.0):
+        for theta_a in ANGLES:
             i = len(configurations) + 1
             configurations.append(
                 Configuration(i, f"{controls} controls, {theta_a:g} deg", {**moves, "antenna.opening_angle_deg": theta_a})
             )
+    # paired: 11 against 79 controls at each angle; along the angles for each control set
+    pairs = [(i, i + 4, f"{a:g} deg: 11 -> 79 controls") for i, a in enumerate(ANGLES, start=1)]
+    for controls, first in ((11, 1), (79, 5)):
+        steps = [(first + j, first + j + 1) for j in range(len(ANGLES) - 1)] + [(first, first + len(ANGLES) - 1)]
+        pairs += [(a, b, f"{controls} controls: {ANGLES[a - first]:g} -> {ANGLES[b - first]:g} deg") for a, b in steps]
     return Experiment(
         "table1",
         "Table I / Fig. 4: 11 or 79 mobility controls x opening angle 60, 80, 100, 120 deg",
@@ -99,6 +107,7 @@ def _table1() -> Experiment:
         "fig4.png",
         xlabel="configuration (Table I): 1-4: 11 controls, 5-8: 79 controls; theta_a 60/80/100/120 deg",
         counts=COUNTS,
+        pairs=tuple(pairs),
     )
 
 
@@ -156,6 +165,12 @@ def _variants(rows: tuple[tuple[str, dict[str, Any]], ...]) -> tuple[Configurati
     return tuple(Configuration(i, label, settings) for i, (label, settings) in enumerate(rows, start=1))
 
 
+def _against(reference: int, rows: tuple[tuple[str, dict[str, Any]], ...]) -> list[tuple[int, int, str]]:
+    """Pairs of every other row against row ``reference`` (1-based), labelled 'REF -> ROW'."""
+    ref = rows[reference - 1][0]
+    return [(reference, i, f"{ref} -> {label}") for i, (label, _) in enumerate(rows, start=1) if i != reference]
+
+
 EXPERIMENTS: dict[str, Experiment] = {
     "table1": _table1(),
     "constraints": Experiment(
@@ -168,6 +183,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         "fig5.png",
         panels=FIG5_PANELS,
         counts=COUNTS,
+        pairs=((1, 2, "constraints on -> off"),),
     ),
     "solvers": Experiment(
         "solvers",
@@ -178,6 +194,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         ),
         "solvers.png",
         counts=COUNTS,
+        pairs=((1, 2, "grasp -> exact"),),
     ),
     "holding": Experiment(
         "holding",
@@ -189,6 +206,8 @@ EXPERIMENTS: dict[str, Experiment] = {
         counts=COUNTS,
         trials=SEED,
         base_settings={"control.solver": "exact"},
+        # every row against the paper's team with aim pointing; the preset against pointing: truth
+        pairs=(*_against(2, HOLDING_VARIANTS), (1, len(HOLDING_VARIANTS), "paper, pointing: truth -> preset pursuit")),
     ),
     "comms": Experiment(
         "comms",
@@ -200,6 +219,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         counts=COUNTS,
         trials=SEED,
         base_settings={"control.solver": "exact", "antenna.pointing": "aim"},
+        pairs=tuple(_against(1, COMMS_VARIANTS)),  # every fault against the faultless team
     ),
 }
 
@@ -273,14 +293,16 @@ def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = 
 def trial_scenario(
     experiment: Experiment, base: dict, configuration: Configuration, draw: TrialDraw, seed: int
 ) -> Scenario:
-    """The validated scenario of trial ``draw`` under ``configuration``. A SEED experiment uses
-    only the draw's index: Fig. 3's start, and a seed of (experiment seed, trial) alone."""
+    """The validated scenario of trial ``draw`` under ``configuration``: the draw's start (a DRAW
+    experiment; a SEED experiment keeps Fig. 3's) and a seed of (experiment seed, trial) alone,
+    the same under every configuration."""
     data = apply_overrides(base, [])
     placed = trial_fields(draw) if experiment.trials == DRAW else {}
     for key, value in {**configuration.settings, **placed}.items():
         set_dotted(data, key, value)
-    # configuration 0 is no configuration's: a SEED trial's stream is the same under every one
-    data["seed"] = simulation_seed(seed, configuration.index if experiment.trials == DRAW else 0, draw.index)
+    # common random numbers: trial k's simulation seed is the same under every configuration
+    # (configuration 0 is no configuration's), so configurations are compared on the same truth
+    data["seed"] = simulation_seed(seed, 0, draw.index)
     data["name"] = f"{experiment.name}-c{configuration.index}-t{draw.index}"
     return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}")
 

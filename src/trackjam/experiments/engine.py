@@ -187,7 +187,7 @@ def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, i
     name = experiment.name
     keys = record_keys(experiment)
     records: dict[tuple[int, int], dict] = {}
-    damaged, foreign = [], []
+    damaged, foreign, stale = [], [], []
     for p in sorted(folder.iterdir()):
         if is_temporary(p):
             p.unlink(missing_ok=True)
@@ -201,13 +201,19 @@ def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, i
         except DamagedTrial:
             damaged.append(p.name)
             continue
-        if (record["experiment"], record["config"], record["trial"], record["seed"]) != (name, *key, seeds[key]):
+        if (record["experiment"], record["config"], record["trial"]) != (name, *key):
             damaged.append(p.name)
+            continue
+        if record["seed"] != seeds[key]:  # run with other random streams (an earlier trackjam's seeding)
+            stale.append(p.name)
             continue
         records[key] = record
     notes = []
     if damaged:
         notes.append(f"{len(damaged)} damaged trial file(s) in {folder} will be run again: {_names(damaged)}")
+    if stale:
+        notes.append(f"{len(stale)} trial file(s) in {folder} were run with other random streams (an earlier "
+                     f"trackjam's seeds) and will be run again: {_names(stale)}")
     if foreign:
         notes.append(f"ignoring {len(foreign)} file(s) in {folder} that are not trials of this experiment: {_names(foreign)}")
     return records, notes

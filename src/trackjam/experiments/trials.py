@@ -11,10 +11,12 @@ at the ball's centre. The model document (docs/model.md) fixes the rest:
 - the target exists from step 1 and is never occluded.
 
 Seeds. The draw of trial k depends only on (experiment seed, k): every configuration of an
-experiment starts trial k from the same positions (the paper's "same trials"), so a comparison
-of configurations is paired on the start. The simulation seed of trial k under configuration c
-depends only on (experiment seed, c, k): the truth's random walk, the noise, the clutter and
-GRASP's samples differ between configurations.
+experiment starts trial k from the same positions (the paper's "same trials"). The simulation
+seed of trial k is the same under every configuration too (``simulation_seed(seed, 0, k)``,
+common random numbers): the truth's random walk is the same, and the noise, clutter and GRASP
+streams start alike, so a comparison of configurations is paired on the truth, not only the
+start (they drift apart once the configurations' agents see different things).
+``simulation_seed`` still takes a configuration index, for callers that want independent streams.
 Both come from ``np.random.SeedSequence(seed, spawn_key=...)``, so no result depends on the
 number of workers, their order, or the backend.
 """
