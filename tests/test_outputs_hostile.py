@@ -335,3 +335,30 @@ def test_the_experiment_closing_table_names_its_units_and_shows_shares_in_percen
     timing = next(csv.DictReader(open(out / "timing.csv")))
     assert f"{1000 * float(timing['step_s_mean']):.3g}" in line
     assert _mean_ci(0.667, 4.2, 100.0) == "66.7 ± 420" and _mean_ci(0.5, 0.03, 100.0) == "50 ± 3"
+
+
+def test_the_experiment_prints_its_paired_comparisons_marking_the_significant_ones(tmp_path):
+    """The pairs of paired.csv follow the closing table: b - a per metric, signed, with its 95 %
+    interval, and * exactly where the interval leaves out 0."""
+    import csv
+    import math
+
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.experiments.cli import _mean_ci
+
+    out = tmp_path / "e"
+    r = CliRunner().invoke(cli.app, ["experiment", "constraints", "--trials", "3", "--steps", "3", "--workers", "1",
+                                     "--out", str(out), *_sets(["filter.particles=100", "filter.birth_particles=20"])],
+                           terminal_width=400)
+    assert r.exit_code == 0, r.output
+    assert f"paired, b - a: mean ± 95% CI over the same trials, * significant ({out / 'paired.csv'})" in r.output
+    row = next(csv.DictReader(open(out / "paired.csv")))
+    assert (row["a"], row["b"], row["label"], row["trials"]) == ("1", "2", "constraints on -> off", "3")
+    line = next(x for x in r.output.splitlines() if "constraints on -> off" in x and "│" in x)
+    cells = [c.strip() for c in line.strip("│ ").split("│")]
+    diff, ci = float(row["incidents_diff"]), float(row["incidents_ci95"])
+    expected = _mean_ci(diff, ci, signed=True) + (" *" if math.isfinite(ci) and abs(diff) > ci else "")
+    assert cells[3] == expected  # a -> b, comparison, trials, then incidents
+    assert _mean_ci(-0.25, 0.5, 100.0, signed=True) == "-25 ± 50" and _mean_ci(0.1, 0.01, signed=True) == "+0.1 ± 0.01"

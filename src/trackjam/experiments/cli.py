@@ -61,9 +61,42 @@ def experiment_command(
         cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
         table.add_row(str(row["config"]), escape(row["label"]), str(row["trials"]), *cells,
                       f"{1000 * timing['step_s_mean']:.3g}")
-    Console(width=220).print(table)
+    console = Console(width=220)
+    console.print(table)
+    if result.paired:
+        if len(result.paired) <= MAX_PAIRS_SHOWN:
+            console.print(paired_table(result, experiment.metrics, units))
+        else:
+            print(f"{len(result.paired)} paired comparisons in {result.out / 'paired.csv'}")
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")
+
+
+MAX_PAIRS_SHOWN = 16  # more (the swarm grid's 36) stay in paired.csv
+
+
+def paired_table(result, metrics, units):
+    """The paired comparisons as a table: per pair a -> b, each metric's mean over the trials of
+    b - a with its 95 % interval, marked * where the interval leaves out 0 (significant)."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    table = Table(title=escape(f"paired, b - a: mean ± 95% CI over the same trials, * significant "
+                               f"({result.out / 'paired.csv'})"))
+    table.add_column("a -> b", justify="right")
+    table.add_column("comparison")
+    table.add_column("trials", justify="right")
+    for (stem, _, _), unit in zip(metrics, units):
+        table.add_column(escape(f"{stem} [{'points' if unit == '%' else unit}]" if unit else stem), justify="right")
+    for row in result.paired:
+        cells = []
+        for (stem, _, _), unit in zip(metrics, units):
+            diff, ci = row[f"{stem}_diff"], row[f"{stem}_ci95"]
+            text = _mean_ci(diff, ci, 100.0 if unit == "%" else 1.0, signed=True)
+            significant = diff is not None and ci is not None and math.isfinite(ci) and abs(diff) > ci
+            cells.append(text + (" *" if significant else ""))
+        table.add_row(f"{row['a']} -> {row['b']}", escape(row["label"]), str(row["trials"]), *cells)
+    return table
 
 
 def _unit(key: str, description: str) -> str:
@@ -75,13 +108,14 @@ def _unit(key: str, description: str) -> str:
     return found.group(1) if found else ""
 
 
-def _mean_ci(mean, ci, scale: float = 1.0) -> str:
-    """``mean ± ci`` (both times ``scale``); one trial has no interval (it printed "± nan"), no
-    value prints "-"."""
+def _mean_ci(mean, ci, scale: float = 1.0, signed: bool = False) -> str:
+    """``mean ± ci`` (both times ``scale``; ``signed``: the mean with its sign, for a difference);
+    one trial has no interval (it printed "± nan"), no value prints "-"."""
     if mean is None or not math.isfinite(mean):
         return "-"
     mean = mean * scale
+    shown = f"{mean:+.3g}" if signed else f"{mean:.3g}"
     if ci is None or not math.isfinite(ci):
-        return f"{mean:.3g}"
+        return shown
     ci = ci * scale
-    return f"{mean:.3g} ± {ci:.0f}" if ci >= 10 else f"{mean:.3g} ± {ci:.2g}"  # no 4.2e+02 for 420
+    return f"{shown} ± {ci:.0f}" if ci >= 10 else f"{shown} ± {ci:.2g}"  # no 4.2e+02 for 420

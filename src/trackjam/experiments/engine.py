@@ -106,6 +106,7 @@ class ExperimentResult:
     ran: int  # trials run now (the others were found in OUT)
     files: list[Path]
     notes: list[str] = field(default_factory=list)  # what the resume found damaged or foreign
+    paired: list[dict[str, Any]] = field(default_factory=list)  # rows of paired.csv (none without pairs)
 
 
 def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
@@ -362,10 +363,11 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
 
     put("summary.csv", lambda path: write_table(path, summary))
     put("timing.csv", lambda path: write_table(path, timing))
-    if experiment.pairs:
-        put("paired.csv", lambda path: write_table(path, paired_rows(records, experiment.pairs, experiment.metrics)))
+    paired = paired_rows(records, experiment.pairs, experiment.metrics) if experiment.pairs else []
+    if paired:
+        put("paired.csv", lambda path: write_table(path, paired))
     put(experiment.figure, lambda path: atomic_write(path, lambda tmp: write_figure(experiment, summary, tmp)))
-    return ExperimentResult(out, summary, timing, ran, files, notes)
+    return ExperimentResult(out, summary, timing, ran, files, notes, paired)
 
 
 def summarise_folder(out: Path | str) -> ExperimentResult:
