@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,12 @@ _profile = os.environ.get("TRACKJAM_HYPOTHESIS", "repeatable")
 if _profile not in ("repeatable", "explore"):
     raise pytest.UsageError(f"TRACKJAM_HYPOTHESIS: unknown profile {_profile!r}; use 'repeatable' (the default) or 'explore'")
 settings.load_profile(_profile)
+
+# The Ctrl-C tests need SIGINT delivered. A suite started in the background by a non-interactive
+# shell (`pytest &`, nohup) inherits SIGINT ignored, and so would every `trackjam` it starts:
+# they would run to the end instead of stopping. Python's own handler is what a terminal gives.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")

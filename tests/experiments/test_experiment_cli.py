@@ -15,6 +15,6 @@ def test_the_command_prints_one_row_per_configuration_and_the_files(tmp_path, mo
     experiment_cli.experiment_command("constraints", trials=2, steps=3, seed=1, workers=1, out=tmp_path)
     text = capsys.readouterr().out
     assert "constraints on" in text and "constraints off" in text
-    assert "ran 4 trials; wrote summary.csv, timing.csv, fig5.png" in text
+    assert "ran 4 trials; wrote summary.csv, timing.csv, paired.csv, fig5.png" in text
     experiment_cli.experiment_command("constraints", trials=2, steps=3, seed=1, workers=1, out=tmp_path)
     assert "all trials were already in OUT" in capsys.readouterr().out
