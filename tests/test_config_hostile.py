@@ -376,3 +376,20 @@ def test_every_experiments_scenarios_pass_the_work_check():
     for name in EXPERIMENTS:
         scenarios, _ = _plan(get_experiment(name), 2, 30, 0, [])  # built and validated, or ConfigError
         assert scenarios
+
+
+# -- a TOML file with no key (tomllib reads an empty text as an empty table) ----------------------
+
+
+@pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n", "   \n# two\n# comments\n"])
+def test_a_toml_file_without_a_key_is_empty_as_a_yaml_one_is(tmp_path, text):
+    # it validated as the default scenario ("ok: scenario, 3 agents, 30 steps") and ran it
+    f = tmp_path / "empty.toml"
+    f.write_text(text)
+    assert _refused(str(f), []) == (f"{f}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
+
+
+def test_a_toml_file_with_an_empty_table_is_not_empty(tmp_path):
+    f = tmp_path / "table.toml"
+    f.write_text("[filter]\n")
+    assert load_scenario(str(f)).filter.particles == 10_000

@@ -313,7 +313,8 @@ def _read_file(path: Path) -> dict:
         if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
             first = err.problem
         raise ConfigError(f"{path}: not valid {'TOML' if toml else 'YAML'}: {first}") from None
-    if data is None:
+    # YAML reads a text without a value as None, TOML as an empty table: both are an empty file
+    if data is None or (toml and data == {}):
         raise ConfigError(f"{path}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: the scenario must be a mapping of keys, got {type(data).__name__}")
