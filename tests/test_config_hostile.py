@@ -393,3 +393,27 @@ def test_a_toml_file_with_an_empty_table_is_not_empty(tmp_path):
     f = tmp_path / "table.toml"
     f.write_text("[filter]\n")
     assert load_scenario(str(f)).filter.particles == 10_000
+
+
+# -- a YAML file that does not parse says what and where ------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        # the first line of PyYAML's text is its context ("while scanning for the next token"), which
+        # said neither the problem nor where it is
+        ("steps: 3\nfilter:\n\tparticles: 100\n",
+         "found character '\\t' that cannot start any token (line 3, column 1; YAML indents with spaces, not tabs)"),
+        ("agents: {initial: [[1, 2, 3]}\n", "expected ',' or ']', but got '}' (line 1, column 29)"),
+        ("steps: [1, 2\n", "expected ',' or ']', but got '<stream end>' (line 2, column 1)"),
+        ('name: "abc\n', "found unexpected end of stream (line 2, column 1)"),
+        ("steps: 3\n  x: 1\n", "mapping values are not allowed here (line 2, column 4)"),
+        ("steps: 3\n- 1\n", "expected <block end>, but found '-' (line 2, column 1)"),
+        ("steps: *nope\n", "found undefined alias 'nope' (line 1, column 8)"),
+    ],
+)
+def test_a_yaml_file_that_does_not_parse_names_the_problem_and_its_line(tmp_path, text, problem):
+    f = tmp_path / "bad.yaml"
+    f.write_text(text)
+    assert _refused(str(f), []) == f"{f}: not valid YAML: {problem}"

@@ -308,11 +308,11 @@ def _read_file(path: Path) -> dict:
         data = _toml(text) if toml else _yaml(text)
     except (TooLarge, LongIntegerError) as err:
         raise ConfigError(f"{path}: {err}") from None
-    except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
+    except tomllib.TOMLDecodeError as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
-            first = err.problem
-        raise ConfigError(f"{path}: not valid {'TOML' if toml else 'YAML'}: {first}") from None
+        raise ConfigError(f"{path}: not valid TOML: {first}") from None
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{path}: not valid YAML: {_yaml_problem(err, lines=True)}") from None
     # YAML reads a text without a value as None, TOML as an empty table: both are an empty file
     if data is None or (toml and data == {}):
         raise ConfigError(f"{path}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
@@ -338,20 +338,23 @@ def _parse_value(text: str) -> Any:
         return text
 
 
-def _yaml_problem(err: yaml.YAMLError) -> str:
-    """One line of a YAML error in a ``--set`` value: the problem and where in the value."""
+def _yaml_problem(err: yaml.YAMLError, lines: bool = False) -> str:
+    """One line of a YAML error: the problem and where, in a ``--set`` value (its column, and its
+    line when it has several) or, with ``lines``, in a file (its line and column). PyYAML's text
+    begins with the context ("while scanning for the next token"), which says neither."""
     if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
         return " ".join(err.problem.split())  # ours name the key and its line, as in a file
     problem = getattr(err, "problem", None)
     if not problem:
         return " ".join(str(err).split()) or type(err).__name__
     mark = getattr(err, "problem_mark", None)
+    hint = "; YAML indents with spaces, not tabs" if "'\\t'" in problem else ""
     if mark is None:
-        where = ""
-    elif mark.line:  # a value of several lines
-        where = f" (line {mark.line + 1}, column {mark.column + 1})"
+        where = f" ({hint[2:]})" if hint else ""
+    elif mark.line or lines:  # a file, or a value of several lines
+        where = f" (line {mark.line + 1}, column {mark.column + 1}{hint})"
     else:
-        where = f" (column {mark.column + 1})"
+        where = f" (column {mark.column + 1}{hint})"
     return " ".join(problem.split()) + where
 
 
