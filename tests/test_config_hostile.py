@@ -417,3 +417,38 @@ def test_a_yaml_file_that_does_not_parse_names_the_problem_and_its_line(tmp_path
     f = tmp_path / "bad.yaml"
     f.write_text(text)
     assert _refused(str(f), []) == f"{f}: not valid YAML: {problem}"
+
+
+# -- YAML 1.1's numbers that read as another number ------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "item, message",
+    [
+        # base 60: 1:30 was 90 steps, 1:30.5 was 90.5 s, without a word
+        ("steps=1:30", "--set steps=1:30: steps: must be an integer, got str '1:30'"),
+        ("control.time_limit_s=1:30.5", "--set control.time_limit_s=1:30.5: control.time_limit_s: must be a number, "
+                                        "got str '1:30.5'"),
+        ("targets=[{id: 1:00}, {id: b}]", None),  # an id may be a text: the text it reads
+    ],
+)
+def test_a_base_60_number_is_a_text_not_another_number(item, message):
+    if message is None:
+        assert load_scenario("swarm-3", [item]).targets[0].id == "1:00"
+    else:
+        assert _refused("paper-fig3", [item]) == message
+
+
+@pytest.mark.parametrize("text, value", [("010", 10), ("0_10", 10), ("-007", -7), ("0", 0), ("00", 0), ("0x10", 16)])
+def test_a_leading_zero_does_not_make_an_integer_octal(text, value):
+    # YAML 1.1 read 010 as 8
+    from trackjam.config.loading import _yaml
+
+    assert _yaml(f"x: {text}\n") == {"x": value}
+
+
+def test_a_particle_count_with_a_leading_zero_is_the_count_it_reads(tmp_path):
+    f = tmp_path / "zero.yaml"
+    f.write_text("filter:\n  particles: 010000\n")  # it was 4096
+    assert load_scenario(str(f)).filter.particles == 10_000
+    assert load_scenario("paper-fig3", ["filter.birth_particles=0100"]).filter.birth_particles == 100

@@ -30,16 +30,28 @@ MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would 
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML with three fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
-    string), a key given twice in one mapping is an error instead of silently the last, and an
+    """YAML with these fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
+    string), a key given twice in one mapping is an error instead of silently the last, an
     integer of more digits than Python converts (4300) is a :class:`LongInteger`, which the
-    model refuses naming its key, instead of a ValueError from inside the parser."""
+    model refuses naming its key, instead of a ValueError from inside the parser, and YAML 1.1's
+    numbers that read as another number are not: ``010`` is 10 (not octal 8), ``1:30`` the text
+    it is (not 90 in base 60)."""
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> Any:
+        text = str(node.value).replace("_", "")
+        if ":" in text:  # YAML 1.1's base 60, 1:30 for 90: a text, which a number's key refuses
+            return self.construct_scalar(node)
         try:
+            if _OCTAL.fullmatch(text):  # YAML 1.1's octal, 010 for 8: decimal, as YAML 1.2 and TOML read it
+                return int(text, 10)
             return super().construct_yaml_int(node)
         except ValueError:  # "Exceeds the limit (4300 digits) for integer string conversion"
             return LongInteger(sum(c.isdigit() for c in str(node.value)))
+
+    def construct_yaml_float(self, node: yaml.ScalarNode) -> Any:
+        if ":" in str(node.value):  # base 60, 1:30.5 for 90.5
+            return self.construct_scalar(node)
+        return super().construct_yaml_float(node)
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen = set()
@@ -58,7 +70,9 @@ class _Loader(yaml.SafeLoader):
         return super().construct_mapping(node, deep)
 
 
+_OCTAL = re.compile(r"[-+]?0[0-7]+")
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
+_Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
