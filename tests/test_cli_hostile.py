@@ -253,3 +253,22 @@ def test_a_run_that_goes_ahead_still_warns(tmp_path):
                   "--set", "filter.birth_particles=100", "--out", str(tmp_path / "run"), "--no-figures")
     assert r.returncode == 0, r.stderr
     assert "trackjam: warning: target.occlusions: [14, 17] reach past the last step (2)" in r.stderr.splitlines()
+
+
+@pytest.mark.parametrize("name, figures", [("run.png", []), ("summary.json", ["--no-figures"]),
+                                           ("steps.parquet", ["--no-figures"])])
+def test_a_run_folder_whose_result_name_is_a_folder_is_refused_before_the_run(tmp_path, name, figures):
+    # the run went ahead, rewrote the files before that one, then failed on it: a folder where a
+    # file goes, in the folder of an earlier run of the same scenario
+    out = tmp_path / "r"
+    sets = ["--set", "steps=2", "--set", "filter.particles=100", "--set", "filter.birth_particles=20",
+            "--set", "target.occlusions=[]"]
+    assert _trackjam("run", "paper-fig3", *sets, "--no-figures", "--out", str(out)).returncode == 0
+    (out / name).unlink(missing_ok=True)  # run.png: the first run wrote no figures
+    (out / name).mkdir()
+    (out / name / "mine").write_text("kept\n")
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    r = _trackjam("run", "paper-fig3", *sets, *figures, "--out", str(out))
+    assert _one_line(r) == f"trackjam: error: --out {out}: {name} is a folder, not a file; move it away or choose another --out"
+    assert "step" not in r.stdout  # refused before the warm-up and the run
+    assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
