@@ -452,3 +452,39 @@ def test_a_particle_count_with_a_leading_zero_is_the_count_it_reads(tmp_path):
     f.write_text("filter:\n  particles: 010000\n")  # it was 4096
     assert load_scenario(str(f)).filter.particles == 10_000
     assert load_scenario("paper-fig3", ["filter.birth_particles=0100"]).filter.birth_particles == 100
+
+
+# -- a problem a --set caused is blamed on it, not on the file ----------------------------------
+
+
+def test_a_section_a_set_creates_without_its_required_keys_is_blamed_on_the_set():
+    # paper-fig3 has no filter.visibility: the --set made one, without `reappear`; the preset was blamed
+    assert _refused("paper-fig3", ["steps=3", "filter.visibility.hide=0.5"]) == (
+        "--set filter.visibility.hide=0.5: filter.visibility.reappear: Field required")
+
+
+def test_a_section_missing_a_required_key_in_the_file_is_still_the_files(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text("filter:\n  visibility: {hide: 0.5}\n")
+    assert _refused(str(f), ["steps=3", "filter.particles=500"]) == f"{f}: filter.visibility.reappear: Field required"
+
+
+@pytest.mark.parametrize("item", ["target.accel_var=0", "target={accel_var: 0}"])
+def test_a_target_set_beside_a_list_of_targets_is_blamed_on_the_set(item):
+    # swarm-3 lists its targets: --set target.accel_var=0 adds the one `target`; the preset was blamed
+    assert _refused("swarm-3", [item]) == (
+        f"--set {item}: give either `target` (one target) or `targets` (a list of them), not both; `target: null` "
+        "sets a given target aside")
+
+
+def test_a_list_of_targets_set_beside_a_files_target_is_blamed_on_the_set():
+    assert _refused("paper-fig3", ["targets=[{id: a}, {id: b}]"]).startswith(
+        "--set targets=[{id: a}, {id: b}]: give either `target` (one target)")
+
+
+def test_a_problem_between_keys_is_not_blamed_on_a_set_of_another_key_of_a_section_it_names():
+    # "the number of agents" names no key: --set agents.n_azimuth did not make at_least exceed it
+    f_items = ["control.at_least=3", "agents.initial=[[30, 30, 30], [20, 10, 10]]"]
+    message = _refused("paper-fig3", f_items[:1] + ["agents.n_azimuth=4"] + f_items[1:])
+    assert message.startswith("--set agents.initial=") or message.startswith("--set control.at_least=3")
+    assert "agents.n_azimuth" not in message

@@ -189,12 +189,20 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
 
 
 def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
-    """The ``--set`` item that set ``key`` (or, for a problem between keys, that the message names)."""
+    """The ``--set`` item that set ``key`` (or, for a problem between keys, that the message
+    names); else one that wrote into the section ``key`` is a required field of (``--set
+    filter.visibility.hide=0.5`` makes a visibility without ``reappear``), or into a section a
+    problem between keys names as a key, in backquotes (`` `target` `` beside `` `targets` ``)."""
     for set_key, item in overridden.items():
         if key:
             if key == set_key or key.startswith(set_key + ".") or set_key.startswith(key + "."):
                 return item
         elif re.search(rf"(^|[\s(]){re.escape(set_key)}\b", msg):
+            return item
+    for set_key, item in overridden.items():
+        if key and msg == "Field required" and set_key.startswith(key.rpartition(".")[0] + "."):
+            return item
+        if not key and f"`{set_key.partition('.')[0]}`" in msg:
             return item
     return None
 
