@@ -162,3 +162,23 @@ def test_a_list_of_targets_for_a_one_target_experiment_points_to_swarm(tmp_path,
                                           "several targets: trackjam experiment swarm$"):
         run_experiment(name, **SWEEP, workers=1, out=tmp_path / "e", overrides=["targets=[{id: a}, {id: b}]"])
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("steps, shown", [(100_001, "100001"), (10**29, "1" + "0" * 29),
+                                          (10**40, "(an integer of more than 30 digits)")])
+def test_steps_past_the_scenarios_bound_are_blamed_on_the_option(tmp_path, steps, shown):
+    # it said "base scenario of the experiment (preset paper-fig3 with --set): steps: Input should be less
+    # than or equal to 100000": a preset and a --set nobody gave
+    with pytest.raises(ConfigError) as err:
+        run_experiment("constraints", trials=1, steps=steps, workers=1, out=tmp_path / "e")
+    assert str(err.value) == f"--steps {shown}: must be an integer in [1, 100000]"
+    assert not (tmp_path / "e").exists()
+
+
+def test_the_cli_blames_steps_past_the_bound_on_the_option(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "trackjam", "experiment", "table1", "--trials", "1", "--steps", "100001",
+         "--out", str(tmp_path / "e")], capture_output=True, text=True, env=ENV, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.splitlines() == ["trackjam: error: --steps 100001: must be an integer in [1, 100000]"]
+    assert not (tmp_path / "e").exists()
