@@ -272,3 +272,26 @@ def test_a_run_folder_whose_result_name_is_a_folder_is_refused_before_the_run(tm
     assert _one_line(r) == f"trackjam: error: --out {out}: {name} is a folder, not a file; move it away or choose another --out"
     assert "step" not in r.stdout  # refused before the warm-up and the run
     assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize(
+    "args, line",
+    [
+        # the item was echoed as given: a newline split the one line in two, an escape sequence
+        # reached the terminal (\x1b[2J clears it)
+        (["validate", "paper-fig3", "--set", "name=a\nb"],
+         "--set name=a\\nb: name: 'a b' is not a safe folder name: use 1 to 100 letters, digits, '_', '-', '+' or "
+         "'.', starting with a letter or digit"),
+        (["validate", "paper-fig3", "--set", "fil\nter.mode=1"],
+         "--set fil\\nter.mode=1: fil\\nter: unknown key (did you mean filter?)"),
+        (["validate", "paper-fig3", "--set", "steps=\x1b[2J"], "--set steps=\\x1b[2J: steps: must be an integer, got "
+                                                               "str '\\x1b[2J'"),
+        (["validate", "paper-fig3", "--set", "steps=[1,\n2"],
+         "--set steps=[1,\\n2: not valid YAML: expected ',' or ']', but got '<stream end>' (line 2, column 2)"),
+        (["validate", "a\nb.yaml"], "a\\nb.yaml: no such file (and no preset of that name; see `trackjam presets`)"),
+    ],
+)
+def test_a_control_character_in_what_the_error_echoes_is_shown_escaped_on_the_one_line(tmp_path, args, line):
+    r = _trackjam(*args, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr == f"trackjam: error: {line}\n"
