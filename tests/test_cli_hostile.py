@@ -295,3 +295,18 @@ def test_a_control_character_in_what_the_error_echoes_is_shown_escaped_on_the_on
     r = _trackjam(*args, cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr == f"trackjam: error: {line}\n"
+
+
+@pytest.mark.parametrize("value", ["abc", "0", "-2", "1e3", "99999999999999999999", "9" * 5000])
+def test_a_bad_thread_count_in_the_environment_is_one_line(tmp_path, value):
+    # TRACKJAM_THREADS (GRASP's threads when control.grasp.threads is null) went through int():
+    # a ValueError traceback for "abc", and "99999999999999999999" asked for that many threads
+    import os
+
+    out = tmp_path / "r"
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--set",
+                        "filter.particles=100", "--set", "filter.birth_particles=20", "--no-figures", "--out", str(out)],
+                       capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": value})
+    assert _one_line(r) == (f"trackjam: error: TRACKJAM_THREADS={value if len(value) < 40 else value[:37] + '...'!r}: must be a whole number of threads in "
+                            "[1, 1024] (or unset: one per agent up to the CPU count)")
+    assert not out.exists()
