@@ -125,8 +125,18 @@ def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, over
     }
 
 
+PARAMETERS_MAX_BYTES = 10_000_000  # an experiment.json is a few hundred bytes and its --set items
+
+
 def read_parameters(meta: Path) -> dict:
-    """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable."""
+    """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable:
+    not a regular file (a pipe waits for a writer forever, /dev/zero never ends), too large to
+    be ours, or not an experiment's parameters."""
+    fix = "remove it to start over, or choose another --out"
+    if not meta.is_file():
+        raise ConfigError(f"{meta}: not a regular file (a folder, a device or a pipe); {fix}")
+    if meta.stat().st_size > PARAMETERS_MAX_BYTES:
+        raise ConfigError(f"{meta}: larger than {PARAMETERS_MAX_BYTES // 1_000_000} MB; {fix}")
     try:
         params = json.loads(meta.read_text())
     except (OSError, ValueError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer past 4300 digits
