@@ -159,3 +159,20 @@ def test_rollout_refuses_seeds_that_are_not_a_list_of_them(scenario, seeds):
     env = parallel_env(scenario)
     with pytest.raises(ValueError, match=r"^rollout: seeds must be an iterable of integers >= 0"):
         rollout(env, random_policy(env), seeds)
+
+
+@pytest.mark.parametrize("progress, kind", [(5, "int"), ("bar", "str"), (True, "bool")])
+def test_simulate_refuses_a_progress_that_is_not_callable_before_the_first_step(scenario, monkeypatch, progress, kind):
+    # it failed after the first step ("'int' object is not callable"), the step's work done
+    import trackjam
+    from trackjam.simulation import loop
+
+    stepped = []
+    real = loop.Simulation.step
+    monkeypatch.setattr(loop.Simulation, "step", lambda self, *a, **k: stepped.append(1) or real(self, *a, **k))
+    with pytest.raises(TypeError, match=rf"^progress: expected a callable \(t, steps\) or None, got {kind}$"):
+        trackjam.simulate(scenario, progress=progress)
+    assert stepped == []
+    seen = []
+    trackjam.simulate(scenario, progress=lambda t, n: seen.append((t, n)))
+    assert seen == [(1, 3), (2, 3), (3, 3)]

@@ -253,3 +253,60 @@ def test_a_run_that_goes_ahead_still_warns(tmp_path):
                   "--set", "filter.birth_particles=100", "--out", str(tmp_path / "run"), "--no-figures")
     assert r.returncode == 0, r.stderr
     assert "trackjam: warning: target.occlusions: [14, 17] reach past the last step (2)" in r.stderr.splitlines()
+
+
+@pytest.mark.parametrize("name, figures", [("run.png", []), ("summary.json", ["--no-figures"]),
+                                           ("steps.parquet", ["--no-figures"])])
+def test_a_run_folder_whose_result_name_is_a_folder_is_refused_before_the_run(tmp_path, name, figures):
+    # the run went ahead, rewrote the files before that one, then failed on it: a folder where a
+    # file goes, in the folder of an earlier run of the same scenario
+    out = tmp_path / "r"
+    sets = ["--set", "steps=2", "--set", "filter.particles=100", "--set", "filter.birth_particles=20",
+            "--set", "target.occlusions=[]"]
+    assert _trackjam("run", "paper-fig3", *sets, "--no-figures", "--out", str(out)).returncode == 0
+    (out / name).unlink(missing_ok=True)  # run.png: the first run wrote no figures
+    (out / name).mkdir()
+    (out / name / "mine").write_text("kept\n")
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    r = _trackjam("run", "paper-fig3", *sets, *figures, "--out", str(out))
+    assert _one_line(r) == f"trackjam: error: --out {out}: {name} is a folder, not a file; move it away or choose another --out"
+    assert "step" not in r.stdout  # refused before the warm-up and the run
+    assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize(
+    "args, line",
+    [
+        # the item was echoed as given: a newline split the one line in two, an escape sequence
+        # reached the terminal (\x1b[2J clears it)
+        (["validate", "paper-fig3", "--set", "name=a\nb"],
+         "--set name=a\\nb: name: 'a b' is not a safe folder name: use 1 to 100 letters, digits, '_', '-', '+' or "
+         "'.', starting with a letter or digit"),
+        (["validate", "paper-fig3", "--set", "fil\nter.mode=1"],
+         "--set fil\\nter.mode=1: fil\\nter: unknown key (did you mean filter?)"),
+        (["validate", "paper-fig3", "--set", "steps=\x1b[2J"], "--set steps=\\x1b[2J: steps: must be an integer, got "
+                                                               "str '\\x1b[2J'"),
+        (["validate", "paper-fig3", "--set", "steps=[1,\n2"],
+         "--set steps=[1,\\n2: not valid YAML: expected ',' or ']', but got '<stream end>' (line 2, column 2)"),
+        (["validate", "a\nb.yaml"], "a\\nb.yaml: no such file (and no preset of that name; see `trackjam presets`)"),
+    ],
+)
+def test_a_control_character_in_what_the_error_echoes_is_shown_escaped_on_the_one_line(tmp_path, args, line):
+    r = _trackjam(*args, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr == f"trackjam: error: {line}\n"
+
+
+@pytest.mark.parametrize("value", ["abc", "0", "-2", "1e3", "99999999999999999999", "9" * 5000])
+def test_a_bad_thread_count_in_the_environment_is_one_line(tmp_path, value):
+    # TRACKJAM_THREADS (GRASP's threads when control.grasp.threads is null) went through int():
+    # a ValueError traceback for "abc", and "99999999999999999999" asked for that many threads
+    import os
+
+    out = tmp_path / "r"
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--set",
+                        "filter.particles=100", "--set", "filter.birth_particles=20", "--no-figures", "--out", str(out)],
+                       capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": value})
+    assert _one_line(r) == (f"trackjam: error: TRACKJAM_THREADS={value if len(value) < 40 else value[:37] + '...'!r}: must be a whole number of threads in "
+                            "[1, 1024] (or unset: one per agent up to the CPU count)")
+    assert not out.exists()

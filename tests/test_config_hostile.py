@@ -376,3 +376,115 @@ def test_every_experiments_scenarios_pass_the_work_check():
     for name in EXPERIMENTS:
         scenarios, _ = _plan(get_experiment(name), 2, 30, 0, [])  # built and validated, or ConfigError
         assert scenarios
+
+
+# -- a TOML file with no key (tomllib reads an empty text as an empty table) ----------------------
+
+
+@pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n", "   \n# two\n# comments\n"])
+def test_a_toml_file_without_a_key_is_empty_as_a_yaml_one_is(tmp_path, text):
+    # it validated as the default scenario ("ok: scenario, 3 agents, 30 steps") and ran it
+    f = tmp_path / "empty.toml"
+    f.write_text(text)
+    assert _refused(str(f), []) == (f"{f}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
+
+
+def test_a_toml_file_with_an_empty_table_is_not_empty(tmp_path):
+    f = tmp_path / "table.toml"
+    f.write_text("[filter]\n")
+    assert load_scenario(str(f)).filter.particles == 10_000
+
+
+# -- a YAML file that does not parse says what and where ------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        # the first line of PyYAML's text is its context ("while scanning for the next token"), which
+        # said neither the problem nor where it is
+        ("steps: 3\nfilter:\n\tparticles: 100\n",
+         "found character '\\t' that cannot start any token (line 3, column 1; YAML indents with spaces, not tabs)"),
+        ("agents: {initial: [[1, 2, 3]}\n", "expected ',' or ']', but got '}' (line 1, column 29)"),
+        ("steps: [1, 2\n", "expected ',' or ']', but got '<stream end>' (line 2, column 1)"),
+        ('name: "abc\n', "found unexpected end of stream (line 2, column 1)"),
+        ("steps: 3\n  x: 1\n", "mapping values are not allowed here (line 2, column 4)"),
+        ("steps: 3\n- 1\n", "expected <block end>, but found '-' (line 2, column 1)"),
+        ("steps: *nope\n", "found undefined alias 'nope' (line 1, column 8)"),
+    ],
+)
+def test_a_yaml_file_that_does_not_parse_names_the_problem_and_its_line(tmp_path, text, problem):
+    f = tmp_path / "bad.yaml"
+    f.write_text(text)
+    assert _refused(str(f), []) == f"{f}: not valid YAML: {problem}"
+
+
+# -- YAML 1.1's numbers that read as another number ------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "item, message",
+    [
+        # base 60: 1:30 was 90 steps, 1:30.5 was 90.5 s, without a word
+        ("steps=1:30", "--set steps=1:30: steps: must be an integer, got str '1:30'"),
+        ("control.time_limit_s=1:30.5", "--set control.time_limit_s=1:30.5: control.time_limit_s: must be a number, "
+                                        "got str '1:30.5'"),
+        ("targets=[{id: 1:00}, {id: b}]", None),  # an id may be a text: the text it reads
+    ],
+)
+def test_a_base_60_number_is_a_text_not_another_number(item, message):
+    if message is None:
+        assert load_scenario("swarm-3", [item]).targets[0].id == "1:00"
+    else:
+        assert _refused("paper-fig3", [item]) == message
+
+
+@pytest.mark.parametrize("text, value", [("010", 10), ("0_10", 10), ("-007", -7), ("0", 0), ("00", 0), ("0x10", 16)])
+def test_a_leading_zero_does_not_make_an_integer_octal(text, value):
+    # YAML 1.1 read 010 as 8
+    from trackjam.config.loading import _yaml
+
+    assert _yaml(f"x: {text}\n") == {"x": value}
+
+
+def test_a_particle_count_with_a_leading_zero_is_the_count_it_reads(tmp_path):
+    f = tmp_path / "zero.yaml"
+    f.write_text("filter:\n  particles: 010000\n")  # it was 4096
+    assert load_scenario(str(f)).filter.particles == 10_000
+    assert load_scenario("paper-fig3", ["filter.birth_particles=0100"]).filter.birth_particles == 100
+
+
+# -- a problem a --set caused is blamed on it, not on the file ----------------------------------
+
+
+def test_a_section_a_set_creates_without_its_required_keys_is_blamed_on_the_set():
+    # paper-fig3 has no filter.visibility: the --set made one, without `reappear`; the preset was blamed
+    assert _refused("paper-fig3", ["steps=3", "filter.visibility.hide=0.5"]) == (
+        "--set filter.visibility.hide=0.5: filter.visibility.reappear: Field required")
+
+
+def test_a_section_missing_a_required_key_in_the_file_is_still_the_files(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text("filter:\n  visibility: {hide: 0.5}\n")
+    assert _refused(str(f), ["steps=3", "filter.particles=500"]) == f"{f}: filter.visibility.reappear: Field required"
+
+
+@pytest.mark.parametrize("item", ["target.accel_var=0", "target={accel_var: 0}"])
+def test_a_target_set_beside_a_list_of_targets_is_blamed_on_the_set(item):
+    # swarm-3 lists its targets: --set target.accel_var=0 adds the one `target`; the preset was blamed
+    assert _refused("swarm-3", [item]) == (
+        f"--set {item}: give either `target` (one target) or `targets` (a list of them), not both; `target: null` "
+        "sets a given target aside")
+
+
+def test_a_list_of_targets_set_beside_a_files_target_is_blamed_on_the_set():
+    assert _refused("paper-fig3", ["targets=[{id: a}, {id: b}]"]).startswith(
+        "--set targets=[{id: a}, {id: b}]: give either `target` (one target)")
+
+
+def test_a_problem_between_keys_is_not_blamed_on_a_set_of_another_key_of_a_section_it_names():
+    # "the number of agents" names no key: --set agents.n_azimuth did not make at_least exceed it
+    f_items = ["control.at_least=3", "agents.initial=[[30, 30, 30], [20, 10, 10]]"]
+    message = _refused("paper-fig3", f_items[:1] + ["agents.n_azimuth=4"] + f_items[1:])
+    assert message.startswith("--set agents.initial=") or message.startswith("--set control.at_least=3")
+    assert "agents.n_azimuth" not in message

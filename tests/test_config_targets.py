@@ -92,7 +92,7 @@ def test_ids_one_and_text_one_are_the_same_id():
         ({"targets": [{"appear": 3}]}, ["targets.0.appear", "unknown key"]),
         ({"targets": [{"appears": 5, "disappears": 3}]}, ["targets.0", "disappears must be >= appears"]),
         ({"targets": [{}] * 65}, ["targets:", "at most 64"]),
-        ({"targets": [{}], "target": {"appears": 2}}, ["either target", "not both"]),
+        ({"targets": [{}], "target": {"appears": 2}}, ["either `target`", "not both"]),
         ({"targets": {"id": 1}}, ["targets:", "valid list"]),
     ],
 )

@@ -170,3 +170,56 @@ def test_a_radius_below_the_particles_spacing_keeps_the_papers_moments():
     assert mode_moments(X, w, 1e-300, 0.2) is None  # nothing lies strictly within 1e-300 m of the centre
     mean, _ = mode_moments(X, w, 1e-9, 0.2)
     np.testing.assert_allclose(mean[:3], 1e5)
+
+
+# a filter.mode cluster whose particles are copies of one (resampled, within a small radius of
+# the densest point) has a singular covariance; covariance intersection inverted it as is, and the
+# fused covariance came out with variances of -1e68 (a numpy "invalid value in sqrt" on stderr
+# under fusion.report_spread), then reseeded the filters with a spread of 1e16 m^2
+SINGULAR = np.array([
+    [3.231e-27, 0.0, 3.231e-27, -1.513e-26, 7.889e-31, -2.761e-30],
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3.231e-27, 0.0, 3.231e-27, -1.513e-26, 7.889e-31, -2.761e-30],
+    [-1.513e-26, 0.0, -1.513e-26, 1.055, 0.7947, 0.1899],
+    [7.889e-31, 0.0, 7.889e-31, 0.7947, 1.469, 0.1797],
+    [-2.761e-30, 0.0, -2.761e-30, 0.1899, 0.1797, 0.6404],
+])  # logged from such a run: the position of every particle of the cluster is one corner
+
+
+@pytest.mark.parametrize("others", [0, 1, 2])
+def test_covariance_intersection_of_a_singular_covariance_stays_a_covariance(others):
+    from trackjam.estimation.fusion import covariance_intersection
+
+    rng = np.random.default_rng(others)
+    means = [np.array([100.0, 0.0, 100.0, 1.0, -1.0, 0.5])]
+    covs = [SINGULAR]
+    for _ in range(others):
+        A = rng.normal(size=(6, 6))
+        means.append(means[0] + rng.normal(size=6))
+        covs.append(A @ A.T + np.eye(6))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mean, cov, omega = covariance_intersection(means, covs)
+    assert np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))
+    assert np.linalg.eigvalsh(cov).min() >= -1e-9 and np.trace(cov) < 100
+    if others == 0:
+        np.testing.assert_allclose(mean, means[0], atol=1e-3)
+
+
+def test_covariance_intersection_of_well_conditioned_covariances_is_unchanged():
+    # the floor leaves every covariance of an ordinary run alone: same bits as before
+    from trackjam.estimation import fusion
+
+    rng = np.random.default_rng(3)
+    covs = [(lambda A: A @ A.T + np.eye(6))(rng.normal(size=(6, 6))) for _ in range(3)]
+    assert all(fusion._conditioned(C) is C for C in covs)
+
+
+def test_a_mode_cluster_of_copies_of_one_particle_runs_without_a_warning():
+    s = load_scenario("paper-fig3", ["steps=10", "seed=6", "filter.particles=60", "filter.birth_particles=20",
+                                     "control.solver=greedy", "filter.mode={radius: 0.5, mass: 0.5}",
+                                     "fusion.report_spread=5e-324"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = simulate(s)
+    assert np.all(np.isfinite(r.agents["existence"]))

@@ -162,3 +162,52 @@ def test_a_list_of_targets_for_a_one_target_experiment_points_to_swarm(tmp_path,
                                           "several targets: trackjam experiment swarm$"):
         run_experiment(name, **SWEEP, workers=1, out=tmp_path / "e", overrides=["targets=[{id: a}, {id: b}]"])
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("steps, shown", [(100_001, "100001"), (10**29, "1" + "0" * 29),
+                                          (10**40, "(an integer of more than 30 digits)")])
+def test_steps_past_the_scenarios_bound_are_blamed_on_the_option(tmp_path, steps, shown):
+    # it said "base scenario of the experiment (preset paper-fig3 with --set): steps: Input should be less
+    # than or equal to 100000": a preset and a --set nobody gave
+    with pytest.raises(ConfigError) as err:
+        run_experiment("constraints", trials=1, steps=steps, workers=1, out=tmp_path / "e")
+    assert str(err.value) == f"--steps {shown}: must be an integer in [1, 100000]"
+    assert not (tmp_path / "e").exists()
+
+
+def test_the_cli_blames_steps_past_the_bound_on_the_option(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "trackjam", "experiment", "table1", "--trials", "1", "--steps", "100001",
+         "--out", str(tmp_path / "e")], capture_output=True, text=True, env=ENV, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.splitlines() == ["trackjam: error: --steps 100001: must be an integer in [1, 100000]"]
+    assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "zero", "huge", "folder"])
+def test_an_experiment_json_that_is_not_a_small_file_is_one_line_without_reading_it(tmp_path, kind):
+    # a pipe waited forever for a writer; /dev/zero (a link to it) or a 16 GB file was read whole,
+    # until the memory ran out. Checked in a process of limited memory and time, so that a
+    # regression fails here instead of hanging or exhausting the machine
+    import os
+    import resource
+
+    out = tmp_path / "e"
+    out.mkdir()
+    meta = out / "experiment.json"
+    if kind == "fifo":
+        os.mkfifo(meta)
+    elif kind == "zero":
+        meta.symlink_to("/dev/zero")
+    elif kind == "huge":
+        with open(meta, "wb") as f:
+            f.truncate(2**34)  # 16 GB, sparse
+    else:
+        meta.mkdir()
+    proc = subprocess.run([sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps",
+                           "2", "--workers", "1", "--out", str(out)], capture_output=True, text=True, env=ENV,
+                          timeout=60, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30)))
+    what = "larger than 10 MB" if kind == "huge" else "not a regular file (a folder, a device or a pipe)"
+    assert proc.returncode == 2 and proc.stderr == (
+        f"trackjam: error: {meta}: {what}; remove it to start over, or choose another --out\n")
+    assert sorted(p.name for p in out.iterdir()) == ["experiment.json"]

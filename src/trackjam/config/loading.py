@@ -30,16 +30,28 @@ MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would 
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML with three fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
-    string), a key given twice in one mapping is an error instead of silently the last, and an
+    """YAML with these fixes for scenario files: ``1e300`` is a float (YAML 1.1 reads it as a
+    string), a key given twice in one mapping is an error instead of silently the last, an
     integer of more digits than Python converts (4300) is a :class:`LongInteger`, which the
-    model refuses naming its key, instead of a ValueError from inside the parser."""
+    model refuses naming its key, instead of a ValueError from inside the parser, and YAML 1.1's
+    numbers that read as another number are not: ``010`` is 10 (not octal 8), ``1:30`` the text
+    it is (not 90 in base 60)."""
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> Any:
+        text = str(node.value).replace("_", "")
+        if ":" in text:  # YAML 1.1's base 60, 1:30 for 90: a text, which a number's key refuses
+            return self.construct_scalar(node)
         try:
+            if _OCTAL.fullmatch(text):  # YAML 1.1's octal, 010 for 8: decimal, as YAML 1.2 and TOML read it
+                return int(text, 10)
             return super().construct_yaml_int(node)
         except ValueError:  # "Exceeds the limit (4300 digits) for integer string conversion"
             return LongInteger(sum(c.isdigit() for c in str(node.value)))
+
+    def construct_yaml_float(self, node: yaml.ScalarNode) -> Any:
+        if ":" in str(node.value):  # base 60, 1:30.5 for 90.5
+            return self.construct_scalar(node)
+        return super().construct_yaml_float(node)
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen = set()
@@ -58,7 +70,9 @@ class _Loader(yaml.SafeLoader):
         return super().construct_mapping(node, deep)
 
 
+_OCTAL = re.compile(r"[-+]?0[0-7]+")
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
+_Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
@@ -175,12 +189,20 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
 
 
 def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
-    """The ``--set`` item that set ``key`` (or, for a problem between keys, that the message names)."""
+    """The ``--set`` item that set ``key`` (or, for a problem between keys, that the message
+    names); else one that wrote into the section ``key`` is a required field of (``--set
+    filter.visibility.hide=0.5`` makes a visibility without ``reappear``), or into a section a
+    problem between keys names as a key, in backquotes (`` `target` `` beside `` `targets` ``)."""
     for set_key, item in overridden.items():
         if key:
             if key == set_key or key.startswith(set_key + ".") or set_key.startswith(key + "."):
                 return item
         elif re.search(rf"(^|[\s(]){re.escape(set_key)}\b", msg):
+            return item
+    for set_key, item in overridden.items():
+        if key and msg == "Field required" and set_key.startswith(key.rpartition(".")[0] + "."):
+            return item
+        if not key and f"`{set_key.partition('.')[0]}`" in msg:
             return item
     return None
 
@@ -308,12 +330,13 @@ def _read_file(path: Path) -> dict:
         data = _toml(text) if toml else _yaml(text)
     except (TooLarge, LongIntegerError) as err:
         raise ConfigError(f"{path}: {err}") from None
-    except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
+    except tomllib.TOMLDecodeError as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
-            first = err.problem
-        raise ConfigError(f"{path}: not valid {'TOML' if toml else 'YAML'}: {first}") from None
-    if data is None:
+        raise ConfigError(f"{path}: not valid TOML: {first}") from None
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{path}: not valid YAML: {_yaml_problem(err, lines=True)}") from None
+    # YAML reads a text without a value as None, TOML as an empty table: both are an empty file
+    if data is None or (toml and data == {}):
         raise ConfigError(f"{path}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: the scenario must be a mapping of keys, got {type(data).__name__}")
@@ -337,20 +360,23 @@ def _parse_value(text: str) -> Any:
         return text
 
 
-def _yaml_problem(err: yaml.YAMLError) -> str:
-    """One line of a YAML error in a ``--set`` value: the problem and where in the value."""
+def _yaml_problem(err: yaml.YAMLError, lines: bool = False) -> str:
+    """One line of a YAML error: the problem and where, in a ``--set`` value (its column, and its
+    line when it has several) or, with ``lines``, in a file (its line and column). PyYAML's text
+    begins with the context ("while scanning for the next token"), which says neither."""
     if isinstance(err, yaml.constructor.ConstructorError) and err.problem:
         return " ".join(err.problem.split())  # ours name the key and its line, as in a file
     problem = getattr(err, "problem", None)
     if not problem:
         return " ".join(str(err).split()) or type(err).__name__
     mark = getattr(err, "problem_mark", None)
+    hint = "; YAML indents with spaces, not tabs" if "'\\t'" in problem else ""
     if mark is None:
-        where = ""
-    elif mark.line:  # a value of several lines
-        where = f" (line {mark.line + 1}, column {mark.column + 1})"
+        where = f" ({hint[2:]})" if hint else ""
+    elif mark.line or lines:  # a file, or a value of several lines
+        where = f" (line {mark.line + 1}, column {mark.column + 1}{hint})"
     else:
-        where = f" (column {mark.column + 1})"
+        where = f" (column {mark.column + 1}{hint})"
     return " ".join(problem.split()) + where
 
 

@@ -632,7 +632,7 @@ class Scenario(_Model):
             return self
         if "target" in self.model_fields_set:
             raise ValueError(
-                "give either target (one target) or targets (a list of them), not both; `target: null` sets a "
+                "give either `target` (one target) or `targets` (a list of them), not both; `target: null` sets a "
                 "given target aside"
             )
         # code that knows one target reads the first of the list (frozen: set once, here)

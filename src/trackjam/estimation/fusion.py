@@ -30,6 +30,22 @@ class FusedEstimate:
     visible: float | None = None  # P(visible | exists) with a hidden-target mode (ours), else None
 
 
+COND_MAX = 1e10  # an estimate's covariance more ill-conditioned than this is floored before inversion
+
+
+def _conditioned(C: np.ndarray) -> np.ndarray:
+    """``C``, or when it is (numerically) singular ``C`` with its eigenvalues floored at
+    ``1 / COND_MAX`` of its largest: a ``filter.mode`` cluster of copies of one particle has no
+    spread in position, and inverting that gave fused variances of -1e68. The covariances of an
+    ordinary run (condition numbers of 10 to 1000) are returned as they are."""
+    C = np.asarray(C, dtype=float)
+    eig = np.linalg.eigvalsh(0.5 * (C + C.T))
+    floor = max(eig[-1], 1e-12) / COND_MAX
+    if eig[0] >= floor:
+        return C
+    return 0.5 * (C + C.T) + (floor - eig[0]) * np.eye(len(C))
+
+
 def _inverse(C: np.ndarray) -> np.ndarray:
     C = 0.5 * (C + C.T)
     try:
@@ -52,7 +68,7 @@ def covariance_intersection(means, covs) -> tuple[np.ndarray, np.ndarray, np.nda
     the order of the inputs beyond the optimiser's tolerance) for more.
     """
     means = np.asarray(means, dtype=float)
-    covs = np.asarray(covs, dtype=float)
+    covs = np.asarray([_conditioned(C) for C in covs], dtype=float)
     k = len(means)
     if k == 0:
         raise ValueError("covariance intersection needs at least one estimate")

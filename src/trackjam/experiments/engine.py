@@ -22,7 +22,7 @@ from typing import Any, Callable, Mapping
 
 import trackjam
 from trackjam.config import Scenario
-from trackjam.config.limits import check_seed, check_trial_runs, check_workers, run_memory
+from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory
 from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
@@ -126,8 +126,18 @@ def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, over
     }
 
 
+PARAMETERS_MAX_BYTES = 10_000_000  # an experiment.json is a few hundred bytes and its --set items
+
+
 def read_parameters(meta: Path) -> dict:
-    """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable."""
+    """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable:
+    not a regular file (a pipe waits for a writer forever, /dev/zero never ends), too large to
+    be ours, or not an experiment's parameters."""
+    fix = "remove it to start over, or choose another --out"
+    if not meta.is_file():
+        raise ConfigError(f"{meta}: not a regular file (a folder, a device or a pipe); {fix}")
+    if meta.stat().st_size > PARAMETERS_MAX_BYTES:
+        raise ConfigError(f"{meta}: larger than {PARAMETERS_MAX_BYTES // 1_000_000} MB; {fix}")
     try:
         params = json.loads(meta.read_text())
     except (OSError, ValueError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer past 4300 digits
@@ -277,6 +287,9 @@ def run_experiment(
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
     if not isinstance(steps, int) or steps < 1:
         raise ConfigError(f"--steps must be a positive integer, got {steps!r}")
+    if steps > MAX_STEPS:  # else blamed on the preset, "with --set" when none was given
+        shown = f"{steps}" if steps < 10**30 else "(an integer of more than 30 digits)"  # as check_seed shows one
+        raise ConfigError(f"--steps {shown}: must be an integer in [1, {MAX_STEPS}]")
     check_seed(seed)  # the range `run --seed` takes (SeedSequence would take any size)
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")

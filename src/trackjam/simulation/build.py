@@ -19,7 +19,7 @@ import numpy as np
 from trackjam.config import Scenario, load_scenario, scenario_to_yaml  # noqa: F401  (load_scenario: handed on)
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
 from trackjam.estimation.failsafe import FailSafe
 from trackjam.estimation.lmb import LMBParams
@@ -30,12 +30,19 @@ from trackjam.world.moves import displacement_set
 from trackjam.world.target import Response, TargetParams
 
 
+MAX_THREADS = 1024  # control.grasp.threads' bound
+
+
 def default_threads(n_agents: int) -> int:
-    """One thread per agent's GRASP search, up to the CPU count; 1 where the environment says
-    one thread per process (experiment workers set TRACKJAM_THREADS=1)."""
+    """One thread per agent's GRASP search, up to the CPU count, or as many as the environment's
+    TRACKJAM_THREADS says (a whole number in [1, 1024]; anything else is refused in one line)."""
     env = os.environ.get("TRACKJAM_THREADS")
     if env:
-        return max(1, int(env))
+        text = env.strip()
+        if not (text.isdecimal() and len(text) <= 4 and 1 <= int(text) <= MAX_THREADS):
+            raise ConfigError(f"TRACKJAM_THREADS={shortened(env, 40)!r}: must be a whole number of threads in "
+                              f"[1, {MAX_THREADS}] (or unset: one per agent up to the CPU count)")
+        return int(text)
     return max(1, min(n_agents, os.cpu_count() or 1))
 
 

@@ -17,7 +17,9 @@ __all__ = ["RunResult", "simulate"]
 
 def simulate(scenario: Scenario, progress: Callable[[int, int], None] | None = None) -> RunResult | SwarmResult:
     """Run one scenario end to end and return its logs and summary (a :class:`SwarmResult` for
-    several targets)."""
+    several targets). ``progress(t, steps)`` is called after each step."""
+    if progress is not None and not callable(progress):  # else it failed after the first step's work
+        raise TypeError(f"progress: expected a callable (t, steps) or None, got {type(progress).__name__}")
     if several_targets(scenario):
         from trackjam.simulation.swarm import SwarmSimulation
 

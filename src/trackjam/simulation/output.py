@@ -56,6 +56,13 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
                 what = "another scenario's run" if previous.is_file() else "other files"
                 fix = "pass --out FOLDER or change the scenario's `name`" if default else "choose a new or empty folder"
                 raise ConfigError(f"{where}: folder is not empty and holds {what}; {fix}")
+            # an earlier run of this scenario, to be replaced: a name of ours that is not a file
+            # (a folder) would fail only once the run is done and the files before it rewritten
+            for name in RUN_FILES:
+                if (out / name).exists() and not (out / name).is_file():
+                    what = "a folder" if (out / name).is_dir() else "a device or a pipe"
+                    fix = "pass --out FOLDER" if default else "choose another --out"
+                    raise ConfigError(f"{where}: {name} is {what}, not a file; move it away or {fix}")
     parent = out if out.is_dir() else _existing_parent(out, where)
     try:  # a real probe: os.access says yes to root even on read-only file systems
         with tempfile.TemporaryFile(dir=parent):
