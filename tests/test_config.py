@@ -242,3 +242,36 @@ def test_grasp_work_is_checked_only_for_grasp():
     with pytest.raises(ConfigError, match="control.grasp.iterations: one step would take about"):
         load_scenario("paper-fig3", ["control.grasp.iterations=100000"])
     assert load_scenario("paper-fig3", ["control.grasp.iterations=100000", "control.solver=exact"])
+
+
+def test_messages_in_flight_count_in_the_memory_check(monkeypatch):
+    """comms.delay_steps holds every message of delay_steps steps: 64 agents at the 1000-step
+    bound is gigabytes, which the check must see; the estimate bounds what a short run holds."""
+    import tracemalloc
+
+    from trackjam.config import limits
+    from trackjam.simulation.engine import Simulation
+
+    big = load_scenario("paper-fig3", ["comms.delay_steps=1000", "steps=1005", "control.solver=exact",
+                                       f"agents.initial={[[50.0, 50.0, 10.0 + i] for i in range(64)]}"])
+    assert limits.estimate(big)["memory_messages"][0] > 1e9
+    assert "memory_messages" not in limits.estimate(load_scenario("paper-fig3"))
+    monkeypatch.setattr(limits, "memory_budget", lambda: 200e6)
+    with pytest.raises(ConfigError, match=r"comms.delay_steps: a run would hold about .* of memory"):
+        load_scenario("paper-fig3", ["comms.delay_steps=1000", "steps=1005",
+                                     f"agents.initial={[[50.0, 50.0, 10.0 + i] for i in range(16)]}"])
+    # measured: 8 agents, 20 steps of delay, small filters; the pending messages after 22 steps
+    s = load_scenario("paper-fig3", ["comms.delay_steps=20", "steps=25", "filter.particles=200",
+                                     "filter.birth_particles=50", "control.solver=exact",
+                                     f"agents.initial={[[40.0 + 3 * i, 45.0, 30.0] for i in range(8)]}"])
+    sim = Simulation(s)
+    sim.step()
+    tracemalloc.start()
+    try:
+        for _ in range(21):
+            sim.step()
+        held = tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
+    assert len(sim.team.exchange.pending) == 8 * 7 * 3 * 20
+    assert held <= limits.estimate(s)["memory_messages"][0] + 20e6  # the rest of a small run

@@ -49,7 +49,7 @@ _DEFAULTS = {
     "agents.initial": 3, "agents.radial_steps": 3, "agents.n_inclination": 8, "agents.n_azimuth": 8,
     "filter.particles": 10_000, "filter.birth_particles": 2000, "sensor.clutter_rate": 3.0,
     "steps": 30, "control.grasp.samples": 10_000, "control.grasp.iterations": 100, "targets": 3,
-    "control.belief_samples": 16,
+    "control.belief_samples": 16, "comms.delay_steps": 1,
 }
 # planning over the belief (control.plan_over: belief), measured on 3 to 32 agents and 48 to 8192
 # belief points S (up to control.belief_samples from each agent) at about 10 ns an operation:
@@ -145,6 +145,15 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
     several = s.targets is not None and len(s.targets) > 1
     if several:
         out.update(_swarm_estimate(s, N, C, L, m))
+    if s.comms.delay_steps and not several:
+        # messages in flight: each step every agent sends its prediction, plan and posterior (or
+        # scan) to the N - 1 others, held for delay_steps steps; an entry per recipient (about
+        # 128 bytes) and the message itself (its estimate or scan, about 2.5 kB + 24 per
+        # measurement); measured 3.5 kB per message and sender at N = 16, 4.7 kB here
+        out["memory_messages"] = (
+            s.comms.delay_steps * N * 3.0 * ((N - 1) * 128.0 + 2500.0 + 24.0 * m),
+            ("comms.delay_steps", "agents.initial"),
+        )
     # planning over the belief (one target; the swarm engine refuses it): S points, each agent's
     # control.belief_samples when every agent believes or searches
     belief = s.control.plan_over == "belief" and not several
