@@ -139,7 +139,9 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
         ),
         # the measurement log (6 columns) and the per-agent log (about 25 columns)
         "memory_logs": (s.steps * N * 8.0 * (6 * m + 25), ("steps", "sensor.clutter_rate", "agents.initial")),
-        "work_filter": (N * (n + n_b) * (m + 1.0), particles + ("sensor.clutter_rate",)),
+        # with fusion.share: scans every agent weighs every teammate's scan too (N^2 updates a step)
+        "work_filter": (N * (N if s.fusion.share == "scans" else 1) * (n + n_b) * (m + 1.0),
+                        particles + ("sensor.clutter_rate",)),
         "work_tables": (float(N * N * C * C), moves),
     }
     several = s.targets is not None and len(s.targets) > 1
