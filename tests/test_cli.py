@@ -277,7 +277,7 @@ def test_help_shows_no_value_beside_a_flag(args, flags):
 
 def test_experiment_help_lists_every_scheduler_scheme():
     words = " ".join(_help("experiment").replace("│", " ").split())
-    assert "SCHEME://HOST:PORT with tcp, tls, ws or wss" in words
+    assert "[SCHEME://]HOST:PORT with tcp (the default), tls, ws or wss" in words
 
 
 @pytest.mark.parametrize("typo, preset", [("paper_fig3", "paper-fig3"), ("swarm3", "swarm-3"), ("Paper-Fig3", "paper-fig3")])

@@ -382,7 +382,7 @@ def experiment(
     steps: int = typer.Option(30, "--steps", help="Steps per trial (the paper: 30)."),
     seed: int = typer.Option(0, "--seed", help="Experiment seed; each trial's seed derives from it."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: CPU count)."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, SCHEME://HOST:PORT with tcp, tls, ws or wss."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, [SCHEME://]HOST:PORT with tcp (the default), tls, ws or wss."),
     out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
     grid: Optional[str] = typer.Option(None, "--grid", help="swarm only: TARGETSxAGENTS, e.g. 1-4x3-6 (the default)."),

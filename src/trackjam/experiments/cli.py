@@ -16,7 +16,7 @@ OPTIONS = {
     "--steps": "steps of dT = 1 s per trial (paper: 30)",
     "--seed": "experiment seed; trial k's draw and each (configuration, trial) seed derive from it",
     "--workers": "local worker processes (default: CPU count; 1 runs in this process)",
-    "--scheduler": "address SCHEME://HOST:PORT (tcp, tls, ws or wss) of a running Dask scheduler; trials run on its workers",
+    "--scheduler": "address [SCHEME://]HOST:PORT (tcp, the default, tls, ws or wss) of a running Dask scheduler; trials run on its workers",
     "--out": "output folder (default runs/experiment-NAME); rerun with the same options to resume",
     "--set": "key=value scenario override applied to every configuration (repeatable)",
     "--grid": "swarm only: its cells, TARGETSxAGENTS, each side numbers or ranges (default 1-4x3-6)",
