@@ -9,7 +9,30 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
+from trackjam.errors import ConfigError
+
 TEMP_MARK = ".tmp"
+
+
+def existing_folder(path: Path, where: str) -> Path:
+    """The nearest existing path at or above ``path`` (absolute), where a folder to write in
+    would be made; a file there is refused in one line beginning with ``where``."""
+    p = Path(path).absolute()
+    while not p.exists():
+        p = p.parent
+    if not p.is_dir():
+        raise ConfigError(f"{where}: {p} is a file, not a folder")
+    return p
+
+
+def check_writable(folder: Path, where: str) -> None:
+    """Refuse, in one line beginning with ``where``, a folder in which no file can be created: a
+    real probe, since os.access says yes to root even on read-only file systems."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        raise ConfigError(f"{where}: {folder} is not writable ({err.strerror})") from None
 
 
 def special_file(path: Path) -> bool:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import tempfile
 from pathlib import Path
 
 
@@ -117,7 +116,7 @@ def _earlier_figures(path: Path) -> bool:
 
 def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list[str] | None = None) -> dict:
     from trackjam.errors import ConfigError
-    from trackjam.files import special_file
+    from trackjam.files import check_writable, special_file
 
     groups = _groups(quick)
     chosen = only or list(groups)
@@ -135,11 +134,7 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
                               "choose another name")
         if not json_out.absolute().parent.is_dir():
             raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not an existing folder")
-        try:  # a real probe: os.access says yes to root even on read-only file systems
-            with tempfile.TemporaryFile(dir=json_out.absolute().parent):
-                pass
-        except OSError as err:
-            raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not writable ({err.strerror})") from None
+        check_writable(json_out.absolute().parent, f"--json {json_out}")
     results = {"machine": machine(), "quick": quick}
     print(f"machine: {results['machine']}", flush=True)
     for g in chosen:

@@ -65,11 +65,16 @@ BELIEF_EXACT_OPS = 800.0
 MAX_SEED = 2**63 - 1  # the scenario's `seed`; numpy's generators take more, the logs' int64 columns do not
 
 
+def shown_integer(value: Any) -> str:
+    """An option's value as a one-line message shows it: an integer of more than 30 digits by
+    its size, not its digits."""
+    return f"{value}" if not isinstance(value, int) or abs(value) < 10**30 else "(an integer of more than 30 digits)"
+
+
 def check_seed(seed: Any) -> None:
     """Refuse (one line, naming --seed) a seed of a run or an experiment outside [0, 2^63 - 1]."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
-        shown = f"{seed}" if not isinstance(seed, int) or abs(seed) < 10**30 else "(an integer of more than 30 digits)"
-        raise ConfigError(f"--seed {shown}: must be an integer in [0, 2^63 - 1]")
+        raise ConfigError(f"--seed {shown_integer(seed)}: must be an integer in [0, 2^63 - 1]")
 
 
 def check_name(name: str) -> None:

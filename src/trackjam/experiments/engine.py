@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +21,7 @@ from typing import Any, Callable, Mapping
 
 import trackjam
 from trackjam.config import Scenario
-from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory
+from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
 from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
@@ -49,7 +48,7 @@ from trackjam.experiments.summary import (
     write_table,
     write_trial,
 )
-from trackjam.files import atomic_write, is_temporary
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary
 
 TrialFunction = Callable[[Scenario], Mapping[str, Any]]
 
@@ -163,16 +162,7 @@ def _check_out(out: Path, params: dict) -> None:
             raise ConfigError(f"--out {out}: trials is a file, not a folder")
     elif out.is_dir() and any(out.iterdir()):
         raise ConfigError(f"{out} is not empty and holds no experiment.json; choose another --out")
-    parent = out.absolute()
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise ConfigError(f"--out {out}: {parent} is a file, not a folder")
-    try:  # a real probe: os.access says yes to root even on read-only file systems
-        with tempfile.TemporaryFile(dir=parent):
-            pass
-    except OSError as err:
-        raise ConfigError(f"--out {out}: {parent} is not writable ({err.strerror})") from None
+    check_writable(existing_folder(out, f"--out {out}"), f"--out {out}")
 
 
 def _claim(out: Path, params: dict) -> None:
@@ -288,8 +278,7 @@ def run_experiment(
     if not isinstance(steps, int) or steps < 1:
         raise ConfigError(f"--steps must be a positive integer, got {steps!r}")
     if steps > MAX_STEPS:  # else blamed on the preset, "with --set" when none was given
-        shown = f"{steps}" if steps < 10**30 else "(an integer of more than 30 digits)"  # as check_seed shows one
-        raise ConfigError(f"--steps {shown}: must be an integer in [1, {MAX_STEPS}]")
+        raise ConfigError(f"--steps {shown_integer(steps)}: must be an integer in [1, {MAX_STEPS}]")
     check_seed(seed)  # the range `run --seed` takes (SeedSequence would take any size)
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
@@ -376,7 +365,7 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
 
     put("summary.csv", lambda path: write_table(path, summary))
     put("timing.csv", lambda path: write_table(path, timing))
-    paired = paired_rows(records, experiment.pairs, experiment.metrics) if experiment.pairs else []
+    paired = paired_rows(records, experiment.pairs, experiment.metrics)  # none without pairs
     if paired:
         put("paired.csv", lambda path: write_table(path, paired))
     put(experiment.figure, lambda path: atomic_write(path, lambda tmp: write_figure(experiment, summary, tmp)))

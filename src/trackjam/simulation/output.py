@@ -11,12 +11,11 @@ already there keep their earlier content.
 from __future__ import annotations
 
 import json
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from trackjam.errors import ConfigError, OutputError
-from trackjam.files import atomic_write, is_temporary_of
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of
 from trackjam.simulation.build import figure_settings, scenario_text
 
 if TYPE_CHECKING:
@@ -63,25 +62,11 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
                     what = "a folder" if (out / name).is_dir() else "a device or a pipe"
                     fix = "pass --out FOLDER" if default else "choose another --out"
                     raise ConfigError(f"{where}: {name} is {what}, not a file; move it away or {fix}")
-    parent = out if out.is_dir() else _existing_parent(out, where)
-    try:  # a real probe: os.access says yes to root even on read-only file systems
-        with tempfile.TemporaryFile(dir=parent):
-            pass
-    except OSError as err:
-        raise ConfigError(f"{where}: {parent} is not writable ({err.strerror})") from None
+    check_writable(out if out.is_dir() else existing_folder(out, where), where)
 
 
 def _leftover(p: Path) -> bool:
     return p.is_file() and any(is_temporary_of(p, name) for name in RUN_FILES)
-
-
-def _existing_parent(p: Path, where: str) -> Path:
-    p = p.absolute()
-    while not p.exists():
-        p = p.parent
-    if not p.is_dir():
-        raise ConfigError(f"{where}: {p} is a file, not a folder")
-    return p
 
 
 def write_run(result, out: Path, figures: bool = True) -> list[Path]:
