@@ -1,6 +1,8 @@
 """The scenario configuration: presets, files, overrides and one-line errors."""
 
 import math
+from decimal import Decimal
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -184,6 +186,38 @@ def test_a_float_that_is_an_integer_is_read_as_one_and_written_back_as_an_int():
 
 def test_numpy_integers_are_integers():
     assert load_scenario("paper-fig3", seed=np.uint64(2**63 - 1), steps=np.int64(3)).seed == 2**63 - 1
+
+
+def test_a_keyword_of_load_scenario_is_blamed_not_the_preset():
+    with pytest.raises(ConfigError) as e:
+        load_scenario("paper-fig3", ["seed=3"], steps="x", control__solver="exact")
+    assert str(e.value) == "load_scenario(steps='x'): steps: must be an integer, got str 'x'"
+    with pytest.raises(ConfigError, match=r"^--set steps=x: steps: must be an integer"):
+        load_scenario("paper-fig3", ["steps=x"])
+    with pytest.raises(ConfigError, match=r"^preset paper-fig3: steps: must be an integer"):
+        validate_scenario({**load_scenario("paper-fig3").model_dump(mode="json"), "steps": "x"}, "preset paper-fig3")
+
+
+@pytest.mark.parametrize(
+    "value, shown",
+    [
+        (10**400, "an integer of 401 digits"),
+        (Decimal("NaN"), "NaN"),
+        (Decimal("1e500"), "1E+500"),
+        (np.float32("nan"), "nan"),
+        (-(10**309), "an integer of 310 digits"),
+    ],
+)
+def test_a_number_that_is_no_finite_float_is_named_as_such(value, shown):
+    with pytest.raises(ConfigError) as e:
+        load_scenario("paper-fig3", antenna__r0=value)
+    assert str(e.value).endswith(f"antenna.r0: must be a finite number, got {shown}")
+
+
+def test_other_kinds_of_real_number_are_read_as_floats():
+    s = load_scenario("paper-fig3", antenna__r0=Fraction(13, 2), sensor__noise_std=[Decimal("0.5"), 0.1, np.int64(1)])
+    assert s.antenna.r0 == 6.5 and type(s.antenna.r0) is float
+    assert s.sensor.noise_std == (0.5, 0.1, 1.0)
 
 
 def test_the_bounds_themselves_are_accepted():

@@ -189,7 +189,8 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
 
 
 def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
-    """The ``--set`` item that set ``key`` (or, for a problem between keys, that the message
+    """Where the problem of ``key`` is blamed (``overridden``'s label of the ``--set`` item or
+    keyword that set it) (or, for a problem between keys, that the message
     names); else one that wrote into the section ``key`` is a required field of (``--set
     filter.visibility.hide=0.5`` makes a visibility without ``reappear``), or into a section a
     problem between keys names as a key, in backquotes (`` `target` `` beside `` `targets` ``)."""
@@ -210,8 +211,8 @@ def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
 def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str, str] | None = None) -> Scenario:
     """Validate a mapping as a :class:`Scenario`, raising :class:`ConfigError` with one line.
 
-    ``overridden`` maps the dotted keys set by ``--set`` to the item that set them: a problem
-    with such a key is blamed on the ``--set``, not on ``source``."""
+    ``overridden`` maps the dotted keys set by ``--set`` (or a keyword) to the label of what set
+    them (:func:`overridden_keys`): a problem with such a key is blamed on it, not on ``source``."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: the scenario must be a mapping of keys, got {type(data).__name__}")
     try:
@@ -220,8 +221,7 @@ def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str,
         by_source: dict[str, list[str]] = {}
         problems = _errors(err)
         for key, msg in problems[:MAX_SHOWN]:
-            item = _blamed(key, msg, overridden or {})
-            where = f"--set {shortened(item, SET_SHOWN)}" if item else source
+            where = _blamed(key, msg, overridden or {}) or source
             by_source.setdefault(where, []).append(f"{key}: {msg}" if key else msg)
         more = f"; and {len(problems) - MAX_SHOWN} more problems" if len(problems) > MAX_SHOWN else ""
         raise ConfigError("; ".join(f"{where}: " + "; ".join(found) for where, found in by_source.items()) + more) from None
@@ -426,8 +426,9 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
 
 
 def overridden_keys(overrides: list[str] | None) -> dict[str, str]:
-    """Dotted key -> the ``--set`` item that set it (the last one wins, as in :func:`apply_overrides`)."""
-    return {item.partition("=")[0].strip(): item for item in overrides or [] if "=" in item}
+    """Dotted key -> ``--set ITEM``, the item that set it (the last one wins, as in
+    :func:`apply_overrides`), the label a problem with that key is blamed on."""
+    return {item.partition("=")[0].strip(): f"--set {shortened(item, SET_SHOWN)}" for item in overrides or [] if "=" in item}
 
 
 def blamed_on_set(message: str, overrides: list[str] | None) -> str:
@@ -435,8 +436,8 @@ def blamed_on_set(message: str, overrides: list[str] | None) -> str:
     simulate) prefixed with the ``--set`` item that set its key, as :func:`validate_scenario`
     blames one; unchanged when no ``--set`` set it."""
     key, sep, _ = message.partition(": ")
-    item = _blamed(key, message, overridden_keys(overrides)) if sep and " " not in key else None
-    return f"--set {shortened(item, SET_SHOWN)}: {message}" if item else message
+    where = _blamed(key, message, overridden_keys(overrides)) if sep and " " not in key else None
+    return f"{where}: {message}" if where else message
 
 
 def _deep_copy(d: Any) -> Any:
@@ -470,9 +471,11 @@ def load_scenario(
     overrides = _items(overrides)
     data, label = load_scenario_data(name_or_path)
     data = apply_overrides(data, overrides)
+    blame = overridden_keys(overrides)
     for key, value in fields.items():
         set_dotted(data, key.replace("__", "."), value)
-    return validate_scenario(data, label, overridden_keys(overrides))
+        blame[key.replace("__", ".")] = f"load_scenario({shortened(f'{key}={value!r}', SET_SHOWN)})"
+    return validate_scenario(data, label, blame)
 
 
 def scenario_to_dict(s: Scenario) -> dict:

@@ -3,6 +3,7 @@ paper's symbol in its description (unknown keys are errors)."""
 
 from __future__ import annotations
 
+import decimal
 import math
 import numbers
 from typing import Annotated, Any, Literal
@@ -73,10 +74,16 @@ def _number(v: Any) -> Any:
         raise ValueError(v.problem())
     if isinstance(v, (bool, str, bytes)):
         raise ValueError(f"must be a number, got {type(v).__name__} {v!r}")
-    if isinstance(v, float) and not math.isfinite(v):
-        raise ValueError(f"must be a finite number, got {v}")
-    if isinstance(v, float):
-        return v + 0.0  # -0.0 passes ge=0 yet numpy reads its sign (a scale of -0.0 is "< 0")
+    if isinstance(v, (numbers.Real, decimal.Decimal)):
+        # an int of 400 digits or Decimal('NaN') is no finite float (pydantic said "a valid number"
+        # and "greater than 0"); float() is what the model keeps anyway
+        try:
+            f = float(v)
+        except OverflowError:
+            f = math.inf
+        if not math.isfinite(f):
+            raise ValueError(f"must be a finite number, got {_shown(v)}")
+        return f + 0.0  # -0.0 passes ge=0 yet numpy reads its sign (a scale of -0.0 is "< 0")
     return v
 
 
