@@ -261,3 +261,15 @@ def test_a_paired_difference_is_over_the_trials_both_ran():
     row = paired_rows(records, [(1, 2, "one -> two")], (("x", "x", ""),))[0]
     assert row["trials"] == 4 and row["label"] == "one -> two"
     assert (row["x_diff"], row["x_ci95"]) == pytest.approx(mean_ci95([1.0, 0.5, 3.0]))
+
+
+def test_differences_equal_but_for_rounding_have_an_interval_of_zero():
+    from scipy import stats
+
+    from trackjam.experiments.summary import mean_ci95
+
+    d = [1 / 3 - 2 / 3, 2 / 3 - 1.0]  # -1/3 twice, but for the last bit
+    assert d[0] != d[1] and np.std(d, ddof=1) > 0
+    assert mean_ci95(d) == (pytest.approx(-1 / 3), 0.0)
+    x = [0.5, 1.5, 4.0]  # a real spread keeps its t-interval
+    assert mean_ci95(x)[1] == pytest.approx(stats.t.ppf(0.975, 2) * np.std(x, ddof=1) / np.sqrt(3))

@@ -141,7 +141,8 @@ def mean_ci95(values: Iterable[float]) -> tuple[float, float]:
     m = float(x.mean())
     if n < 2:
         return m, math.nan
-    s = float(x.std(ddof=1))
+    # values equal but for rounding (b - a of shares like 1/3 - 2/3 and 2/3 - 1) vary by 0, not 1e-16
+    s = 0.0 if np.ptp(x) <= 1e-12 * float(np.abs(x).max()) else float(x.std(ddof=1))
     return m, float(stats.t.ppf(0.975, n - 1) * s / math.sqrt(n))
 
 
