@@ -220,6 +220,7 @@ def test_a_worker_warms_up_once_per_configuration_before_timing_and_the_record_i
     assert len(calls) == 2  # configurations 1 and 2, once each
     engine.run_trial(lambda sc: {"x": 1.0}, "table1", 3, 0, s)
     assert len(calls) == 2  # a caller's trial function is not ours to warm
-    timing = {"step_s_mean", "solve_s_mean", "steps", "experiment"}
+    timing = {"step_s_mean", "solve_s_mean", "steps", "experiment", "scenario"}
+    assert cold["scenario"] == warm["scenario"]  # the same scenario's fingerprint
     same = [k for k in cold if k not in timing]
     assert same and all(np.array_equal(np.asarray(cold[k]), np.asarray(warm[k]), equal_nan=True) for k in same)

@@ -80,6 +80,23 @@ def test_a_trial_run_with_other_random_streams_is_run_again_and_said_so(fresh, t
     assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
 
 
+@pytest.mark.parametrize("other", [{"steps": 4}, {"overrides": ["filter.birth_speed=1"]}])
+def test_a_trial_copied_from_a_run_with_other_steps_or_set_is_run_again_and_said_so(fresh, tmp_path, capsys, other):
+    """Same experiment, seed, configuration and trial, so the same seed column: the trial's
+    settings are what differ. It was read back as this run's and mixed into summary.csv."""
+    out, elsewhere = tmp_path / "mine", tmp_path / "other"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    run_experiment("constraints", workers=1, out=elsewhere, **{**SWEEP, **other})
+    name = trial_filename(2, 1)
+    (out / "trials" / name).write_bytes((elsewhere / "trials" / name).read_bytes())
+    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "progress": "lines"})
+    err = capsys.readouterr().err.splitlines()
+    assert r.ran == 1 and len(err) == 1
+    assert "1 trial file(s)" in err[0] and "other settings" in err[0] and name in err[0]
+    assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
+    assert (out / "paired.csv").read_bytes() == (fresh / "paired.csv").read_bytes()
+
+
 def test_reading_a_damaged_trial_names_the_file():
     with pytest.raises(DamagedTrial, match="c01-t0000.parquet"):
         read_trial(Path("/nonexistent/c01-t0000.parquet"))

@@ -11,6 +11,7 @@ there is one) have all been checked.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -20,7 +21,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import trackjam
-from trackjam.config import Scenario
+from trackjam.config import Scenario, scenario_to_dict
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
 from trackjam.errors import ConfigError, OutputError
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
@@ -71,6 +72,13 @@ def simulate_trial(scenario: Scenario) -> dict[str, Any]:
     return record
 
 
+def scenario_digest(scenario: Scenario) -> str:
+    """A fingerprint of everything a trial's scenario sets (seed, steps, every setting, so every
+    --set): a trial file of another run of the same experiment is told apart from this run's."""
+    text = json.dumps(scenario_to_dict(scenario), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 _SIMULATING = (simulate_trial, swarm_trial)  # the trials that run our engines, warmed up first
 _WARMED: set[tuple[str, int]] = set()  # (experiment, configuration) this process has warmed up
 
@@ -90,7 +98,8 @@ def run_trial(trial: TrialFunction, experiment: str, config: int, index: int, sc
         warm_up(scenario)
         _WARMED.add((experiment, config))
     record = dict(trial(scenario))
-    record.update(experiment=experiment, config=config, trial=index, seed=scenario.seed)
+    record.update(experiment=experiment, config=config, trial=index, seed=scenario.seed,
+                  scenario=scenario_digest(scenario))
     return record
 
 
@@ -181,20 +190,21 @@ def record_keys(experiment: Experiment) -> tuple[str, ...]:
     return tuple(dict.fromkeys(k for _, k, _ in experiment.metrics + experiment.counts + TIMING))
 
 
-def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, int], int]) -> tuple[dict, list[str]]:
-    """The intact trial records in ``folder`` by (config, trial), and one line for each kind of
-    file passed over: damaged trials (re-run) and files that are not this experiment's trials
-    (left alone). Stale temporary files of interrupted writes are removed."""
+def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[int, int], Scenario]) -> tuple[dict, list[str]]:
+    """The intact trial records in ``folder`` by (config, trial) run on ``scenarios``, and one
+    line for each kind of file passed over: damaged trials, trials of other seeds or settings
+    (all re-run) and files that are not this experiment's trials (left alone). Stale temporary
+    files of interrupted writes are removed."""
     name = experiment.name
     keys = record_keys(experiment)
     records: dict[tuple[int, int], dict] = {}
-    damaged, foreign, stale = [], [], []
+    damaged, foreign, stale, other = [], [], [], []
     for p in sorted(folder.iterdir()):
         if is_temporary(p):
             p.unlink(missing_ok=True)
             continue
         key = parse_trial_filename(p.name)
-        if key is None or key not in seeds or not p.is_file():
+        if key is None or key not in scenarios or not p.is_file():
             foreign.append(p.name)
             continue
         try:
@@ -205,8 +215,11 @@ def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, i
         if (record["experiment"], record["config"], record["trial"]) != (name, *key):
             damaged.append(p.name)
             continue
-        if record["seed"] != seeds[key]:  # run with other random streams (an earlier trackjam's seeding)
+        if record["seed"] != scenarios[key].seed:  # run with other random streams (an earlier trackjam's seeding)
             stale.append(p.name)
+            continue
+        if record.get("scenario") != scenario_digest(scenarios[key]):  # copied from a run with other --steps or --set
+            other.append(p.name)
             continue
         records[key] = record
     notes = []
@@ -215,6 +228,9 @@ def _read_back(folder: Path, experiment: Experiment, seeds: Mapping[tuple[int, i
     if stale:
         notes.append(f"{len(stale)} trial file(s) in {folder} were run with other random streams (an earlier "
                      f"trackjam's seeds) and will be run again: {_names(stale)}")
+    if other:
+        notes.append(f"{len(other)} trial file(s) in {folder} were run with other settings than this run's (another "
+                     f"--steps or --set, or a trackjam that did not record them) and will be run again: {_names(other)}")
     if foreign:
         notes.append(f"ignoring {len(foreign)} file(s) in {folder} that are not trials of this experiment: {_names(foreign)}")
     return records, notes
@@ -303,7 +319,7 @@ def run_experiment(
     with open_executor(workers, scheduler) as (executor, window):
         _claim(out, params)
         folder = out / "trials"
-        found, notes = _read_back(folder, experiment, {key: s.seed for key, s in scenarios.items()})
+        found, notes = _read_back(folder, experiment, scenarios)
         for line in notes:
             report.note(line)
         records = [found[key] for key in sorted(found)]
@@ -387,5 +403,5 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
         raise ConfigError(f"{out}: no trials/ folder here, nothing to summarise")
     experiment = get_experiment(params["experiment"], params.get("grid"))
     scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
-    found, notes = _read_back(out / "trials", experiment, {key: s.seed for key, s in scenarios.items()})
+    found, notes = _read_back(out / "trials", experiment, scenarios)
     return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)

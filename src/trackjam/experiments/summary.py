@@ -70,6 +70,8 @@ def record_table(record: Mapping[str, Any]) -> pa.Table:
         "trial": pa.array([int(record["trial"])], pa.int64()),
         "seed": pa.array([int(record["seed"])], pa.int64()),
     }
+    if "scenario" in record:  # the fingerprint of the trial's settings (engine.scenario_digest)
+        columns["scenario"] = pa.array([str(record["scenario"])])
     figures = [k for k, v in record.items() if k not in columns and isinstance(v, (int, float)) and not isinstance(v, bool)]
     for key in sorted(figures, key=lambda k: (k not in RECORD_KEYS, RECORD_KEYS.index(k) if k in RECORD_KEYS else 0, k)):
         columns[key] = pa.array([float(record[key])], pa.float64())
