@@ -64,11 +64,6 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     return path
 
 
-def is_temporary(p: Path) -> bool:
-    """A leftover of :func:`atomic_write` (an interrupted write)."""
-    return p.name.startswith(".") and TEMP_MARK in p.name
-
-
 def is_temporary_of(p: Path, name: str) -> bool:
     """A leftover of an interrupted :func:`atomic_write` to ``name`` in ``p``'s folder."""
     return p.name.startswith(f".{name}.") and p.name.endswith(TEMP_MARK + Path(name).suffix)

@@ -62,6 +62,22 @@ def test_damaged_trials_are_run_again_and_strangers_are_ignored(fresh, tmp_path,
     assert summarise_folder(out).summary == r.summary
 
 
+def test_only_an_interrupted_trial_write_is_removed_on_resume(fresh, tmp_path):
+    """A leftover of a trial's atomic write is removed; a user's dot file that merely holds
+    ".tmp" was deleted, and a folder named like a leftover stopped the resume ("Is a directory")."""
+    out = tmp_path / "e"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    trials = out / "trials"
+    leftover = trials / ".c01-t0000.parquet.k2j4x9.tmp.parquet"
+    leftover.write_bytes(b"half")
+    (trials / ".notes.tmp").write_text("mine")
+    (trials / ".c02-t0001.parquet.abc.tmp.parquet").mkdir()
+    r = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert r.ran == 0 and not leftover.exists()
+    assert (trials / ".notes.tmp").read_text() == "mine" and (trials / ".c02-t0001.parquet.abc.tmp.parquet").is_dir()
+    assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
+
+
 def test_a_trial_run_with_other_random_streams_is_run_again_and_said_so(fresh, tmp_path, capsys):
     """A folder from an earlier trackjam, whose trials were seeded otherwise, is not mixed in."""
     import pyarrow as pa

@@ -46,10 +46,11 @@ from trackjam.experiments.summary import (
     parse_trial_filename,
     read_trial,
     table_rows,
+    trial_filename,
     write_table,
     write_trial,
 )
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of
 
 TrialFunction = Callable[[Scenario], Mapping[str, Any]]
 
@@ -200,7 +201,7 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
     records: dict[tuple[int, int], dict] = {}
     damaged, foreign, stale, other = [], [], [], []
     for p in sorted(folder.iterdir()):
-        if is_temporary(p):
+        if _leftover(p):
             p.unlink(missing_ok=True)
             continue
         key = parse_trial_filename(p.name)
@@ -234,6 +235,12 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
     if foreign:
         notes.append(f"ignoring {len(foreign)} file(s) in {folder} that are not trials of this experiment: {_names(foreign)}")
     return records, notes
+
+
+def _leftover(p: Path) -> bool:
+    """``p`` is what an interrupted write of a trial file left (a user's dot file is not)."""
+    key = parse_trial_filename(p.name[1:].partition(".parquet.")[0] + ".parquet")
+    return key is not None and p.is_file() and is_temporary_of(p, trial_filename(*key))
 
 
 def _names(names: list[str], shown: int = 3) -> str:
