@@ -5,6 +5,7 @@ written."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -85,6 +86,18 @@ def test_a_result_name_taken_by_a_folder_is_refused_up_front(done, tmp_path, nam
     with pytest.raises(ConfigError, match=rf"^--out {out}: {name} is a folder"):
         run_experiment("constraints", workers=1, out=out, **SWEEP)
     assert {p.relative_to(out): p.stat().st_mtime_ns for p in out.rglob("*")} == before
+
+
+@pytest.mark.parametrize("name, make", [("summary.csv", lambda p: p.symlink_to("/dev/null")),
+                                        ("paired.csv", lambda p: os.mkfifo(p))])
+def test_a_result_name_taken_by_a_device_or_a_pipe_is_named_so(done, tmp_path, name, make):
+    # it was refused as "a folder"
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    (out / name).unlink()
+    make(out / name)
+    with pytest.raises(ConfigError, match=rf"^--out {out}: {name} is a device or a pipe, not a file; move it away"):
+        run_experiment("constraints", workers=1, out=out, **SWEEP)
 
 
 def test_a_summary_that_cannot_be_written_late_is_one_line_and_keeps_the_trials(done, tmp_path, monkeypatch):

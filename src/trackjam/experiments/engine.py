@@ -321,7 +321,8 @@ def run_experiment(
     _check_out(out, params)
     for written in ("summary.csv", "timing.csv", "paired.csv", experiment.figure):
         if (out / written).exists() and not (out / written).is_file():
-            raise ConfigError(f"--out {out}: {written} is a folder, not a file; move it away or choose another --out")
+            what = "a folder" if (out / written).is_dir() else "a device or a pipe"
+            raise ConfigError(f"--out {out}: {written} is {what}, not a file; move it away or choose another --out")
 
     with open_executor(workers, scheduler) as (executor, window):
         _claim(out, params)
