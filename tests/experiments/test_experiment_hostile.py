@@ -129,8 +129,11 @@ def test_a_trial_that_cannot_be_written_is_one_line_and_keeps_the_others(done, t
         trial_filename(c, k) for c in (1, 2) for k in (0, 1) if (c, k) != (2, 1))
 
 
-@pytest.mark.parametrize("value", [pa.array(["abc"]), pa.array([None], type=pa.float64()), pa.array([True])])
+@pytest.mark.parametrize("value", [pa.array(["abc"]), pa.array([None], type=pa.float64()), pa.array([True]),
+                                   pa.array([float("inf")]), pa.array([-float("inf")])])
 def test_a_trial_whose_figure_is_mistyped_is_run_again_not_a_traceback(done, tmp_path, value):
+    # an infinite figure (no trial yields one) was read back: inf in summary.csv, numpy's and
+    # matplotlib's RuntimeWarnings on stderr
     out = tmp_path / "e"
     shutil.copytree(done, out)
     path = out / "trials" / trial_filename(1, 0)

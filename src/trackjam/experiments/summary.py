@@ -114,6 +114,8 @@ def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
         raise DamagedTrial(f"{path.name}: a null or mistyped identity column")
     if any(isinstance(record[k], bool) or not isinstance(record[k], (int, float)) for k in keys):
         raise DamagedTrial(f"{path.name}: a null or mistyped figure")  # the summary's means would fail on it
+    if any(math.isinf(record[k]) for k in keys):  # no trial yields one (NaN: a figure that does not apply)
+        raise DamagedTrial(f"{path.name}: an infinite figure")
     return record
 
 
