@@ -227,3 +227,12 @@ def test_an_experiment_json_that_is_not_a_small_file_is_one_line_without_reading
     assert proc.returncode == 2 and proc.stderr == (
         f"trackjam: error: {meta}: {what}; remove it to start over, or choose another --out\n")
     assert sorted(p.name for p in out.iterdir()) == ["experiment.json"]
+
+
+@pytest.mark.parametrize("option, value", [("trials", True), ("steps", True), ("workers", True)])
+def test_a_bool_for_a_count_is_refused_through_the_api(tmp_path, option, value):
+    # trials=True ran one trial and wrote "trials": true to experiment.json, which
+    # summarise_folder then refused as mistyped; --seed already refused a bool
+    with pytest.raises(ConfigError, match=rf"^--{option} must be a positive integer, got True$"):
+        run_experiment("constraints", **{**SWEEP, option: value}, out=tmp_path / "e")
+    assert not (tmp_path / "e").exists()

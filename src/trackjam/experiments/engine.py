@@ -296,14 +296,14 @@ def run_experiment(
     """
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
-    if not isinstance(trials, int) or trials < 1:
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
-    if not isinstance(steps, int) or steps < 1:
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ConfigError(f"--steps must be a positive integer, got {steps!r}")
     if steps > MAX_STEPS:  # else blamed on the preset, "with --set" when none was given
         raise ConfigError(f"--steps {shown_integer(steps)}: must be an integer in [1, {MAX_STEPS}]")
     check_seed(seed)  # the range `run --seed` takes (SeedSequence would take any size)
-    if workers is not None and (not isinstance(workers, int) or workers < 1):
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
     if workers is not None and scheduler:
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
