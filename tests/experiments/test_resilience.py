@@ -78,6 +78,26 @@ def test_only_an_interrupted_trial_write_is_removed_on_resume(fresh, tmp_path):
     assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
 
 
+def test_a_leftover_that_cannot_be_removed_does_not_stop_a_finished_sweep(fresh, tmp_path, monkeypatch):
+    """A finished sweep whose trials/ is read-only (archived) and holds an interrupted write's
+    leftover: removing it was an error ("Permission denied") and nothing was summarised."""
+    out = tmp_path / "e"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    leftover = out / "trials" / ".c01-t0000.parquet.k2j4x9.tmp.parquet"
+    leftover.write_bytes(b"half")
+    real = Path.unlink
+
+    def read_only(self, missing_ok=False):
+        if self.parent == out / "trials":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self, missing_ok=missing_ok)
+
+    monkeypatch.setattr(Path, "unlink", read_only)
+    r = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert r.ran == 0 and leftover.exists()
+    assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
+
+
 def test_a_trial_run_with_other_random_streams_is_run_again_and_said_so(fresh, tmp_path, capsys):
     """A folder from an earlier trackjam, whose trials were seeded otherwise, is not mixed in."""
     import pyarrow as pa

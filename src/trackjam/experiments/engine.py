@@ -202,7 +202,10 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
     damaged, foreign, stale, other = [], [], [], []
     for p in sorted(folder.iterdir()):
         if _leftover(p):
-            p.unlink(missing_ok=True)
+            try:
+                p.unlink(missing_ok=True)
+            except OSError:  # a read-only trials/ (an archived sweep): the leftover harms nothing
+                pass
             continue
         key = parse_trial_filename(p.name)
         if key is None or key not in scenarios or not p.is_file():
