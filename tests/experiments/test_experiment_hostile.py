@@ -236,3 +236,29 @@ def test_a_bool_for_a_count_is_refused_through_the_api(tmp_path, option, value):
     with pytest.raises(ConfigError, match=rf"^--{option} must be a positive integer, got True$"):
         run_experiment("constraints", **{**SWEEP, option: value}, out=tmp_path / "e")
     assert not (tmp_path / "e").exists()
+
+
+def test_a_trial_file_that_would_not_fit_in_memory_is_run_again_unread(done, tmp_path, monkeypatch):
+    # a 15 kB hand-made file of one row holding 2e8 zeros took 30 s and 12 GB to read back;
+    # a few more kB would have exhausted the machine. Here 1e6 zeros past a cap lowered to 1 MB.
+    import numpy as np
+
+    import trackjam.experiments.summary as summary
+
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    path = out / "trials" / trial_filename(1, 0)
+    n = 1_000_000
+    bomb = pa.ListArray.from_arrays(pa.array([0, n], pa.int32()), pa.array(np.zeros(n)))
+    pq.write_table(pq.read_table(path).append_column("step.bomb", bomb), path, compression="zstd")
+    assert path.stat().st_size < 100_000
+    monkeypatch.setattr(summary, "TRIAL_MAX_VALUES", 100_000)
+    read = []
+    real = pq.read_table
+    monkeypatch.setattr(summary.pq, "read_table", lambda p, *a, **k: (read.append(Path(p).name), real(p, *a, **k))[1])
+    with pytest.raises(summary.DamagedTrial, match=rf"^{path.name}: .*larger than"):
+        summary.read_trial(path)
+    assert read == []
+    result = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert result.ran == 1 and any("damaged" in n and path.name in n for n in result.notes)
+    assert (out / "summary.csv").read_bytes() == (done / "summary.csv").read_bytes()

@@ -98,13 +98,26 @@ class DamagedTrial(ValueError):
 _IDENTITY = (("experiment", str), ("config", int), ("trial", int), ("seed", int))
 
 
+# the values a trial file may hold (its footer counts them before they are read): the largest
+# ours write, 100,000 steps of 20 per-step series, hold 2 million; a file of a few kB can hold
+# billions of zeros (run-length encoded), gigabytes once read
+TRIAL_MAX_VALUES = 20_000_000
+
+
 def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
     """The record in one trial file; :class:`DamagedTrial` if it is not a complete one (one
-    row, the identity columns and the figures ``keys``)."""
+    row, the identity columns and the figures ``keys``) or holds more than
+    :data:`TRIAL_MAX_VALUES` values."""
     try:
-        table = pq.read_table(path)
+        meta = pq.read_metadata(path)
+        values = sum(meta.row_group(g).column(c).num_values
+                     for g in range(meta.num_row_groups) for c in range(meta.num_columns))
+        if values <= TRIAL_MAX_VALUES:
+            table = pq.read_table(path)
     except (pa.ArrowException, OSError, ValueError) as err:
         raise DamagedTrial(f"{path.name}: {type(err).__name__}") from None
+    if values > TRIAL_MAX_VALUES:
+        raise DamagedTrial(f"{path.name}: {values:,} values, larger than a trial ({TRIAL_MAX_VALUES:,} at most)")
     missing = [k for k, _ in _IDENTITY if k not in table.column_names]
     missing += [k for k in keys if k not in table.column_names]
     if table.num_rows != 1 or missing:
