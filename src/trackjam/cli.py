@@ -102,15 +102,10 @@ def _full_disk(err: OSError) -> str | None:
 
 
 def _fail(message: str) -> None:
-    typer.echo(f"trackjam: error: {_printable(message)}", err=True)
+    from trackjam.errors import printable
+
+    typer.echo(f"trackjam: error: {printable(message)}", err=True)
     raise typer.Exit(2)
-
-
-def _printable(text: str) -> str:
-    """``text`` with its control characters escaped (a newline as ``\\n``): a message echoes the
-    user's --set items and paths as given, and a newline split its one line, an escape sequence
-    reached the terminal."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def user_errors(fn: Callable) -> Callable:

@@ -6,6 +6,13 @@ def shortened(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def printable(text: str) -> str:
+    """``text`` with its control characters escaped (a newline as ``\\n``): a message echoes the
+    user's --set items, paths and file names as given, and a newline split its one line, an
+    escape sequence reached the terminal."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class TrackjamError(Exception):
     """Base of the errors that name a user's mistake."""
 

@@ -62,6 +62,19 @@ def test_damaged_trials_are_run_again_and_strangers_are_ignored(fresh, tmp_path,
     assert summarise_folder(out).summary == r.summary
 
 
+def test_a_note_naming_files_is_one_line_without_control_characters(fresh, tmp_path, capsys):
+    """File names in trials/ come from anywhere: a newline split the note, an escape sequence
+    reached the terminal (error lines escape them already)."""
+    out = tmp_path / "e"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    (out / "trials" / "a\nb").write_text("")
+    (out / "trials" / "\x1b[31mred").write_text("")
+    run_experiment("constraints", workers=1, out=out, **{**SWEEP, "progress": "lines"})
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "\x1b" not in err
+    assert "ignoring 2 file(s)" in err and r"\x1b[31mred" in err and r"a\nb" in err
+
+
 def test_only_an_interrupted_trial_write_is_removed_on_resume(fresh, tmp_path):
     """A leftover of a trial's atomic write is removed; a user's dot file that merely holds
     ".tmp" was deleted, and a folder named like a leftover stopped the resume ("Is a directory")."""

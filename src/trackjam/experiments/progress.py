@@ -7,7 +7,7 @@ import math
 import sys
 from typing import Any, Callable, Mapping
 
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, printable
 
 Shown = tuple[tuple[str, str, str], ...]  # (label, key of a trial record, format) of each running mean
 PAPER_SHOWN: Shown = (("incidents", "jamming_incidents_per_agent", "{:.2f}"), ("OSPA", "ospa_mean", "{:.2f} m"),
@@ -36,7 +36,7 @@ class _Reporter:
 
     def note(self, line: str) -> None:
         """One line on stderr: what a resume found (damaged or foreign files), or what the workers do first."""
-        print(f"{self.name}: {line}", file=sys.stderr, flush=True)
+        print(f"{self.name}: {printable(line)}", file=sys.stderr, flush=True)  # it names files in OUT
 
     def start(self, records: list[Mapping[str, Any]]) -> None:
         self.records = list(records)
