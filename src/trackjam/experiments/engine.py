@@ -225,7 +225,7 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
         if record.get("scenario") != scenario_digest(scenarios[key]):  # copied from a run with other --steps or --set
             other.append(p.name)
             continue
-        records[key] = record
+        records[key] = _figures(record)
     notes = []
     if damaged:
         notes.append(f"{len(damaged)} damaged trial file(s) in {folder} will be run again: {_names(damaged)}")
@@ -238,6 +238,12 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
     if foreign:
         notes.append(f"ignoring {len(foreign)} file(s) in {folder} that are not trials of this experiment: {_names(foreign)}")
     return records, notes
+
+
+def _figures(record: Mapping[str, Any]) -> dict:
+    """A record without its per-step and per-agent lists: what the summary, the pairs and the
+    progress read, so that a sweep holds one trial's series at a time, not every trial's."""
+    return {k: v for k, v in record.items() if not isinstance(v, (list, tuple, dict)) and getattr(v, "ndim", 0) == 0}
 
 
 def _leftover(p: Path) -> bool:
@@ -362,6 +368,7 @@ def run_experiment(
                             f"{folder}: trial {record['trial']} of configuration {record['config']} cannot be written "
                             f"({err.strerror or err}); the {len(records)} trials written before it are intact"
                         ) from None
+                    record = _figures(record)
                     records.append(record)
                     report.trial(record)
         finally:
