@@ -280,3 +280,18 @@ def test_a_resume_holds_one_trials_per_step_series_at_a_time(tmp_path):
         tracemalloc.stop()
     assert again.ran == 0 and again.summary == first.summary and again.paired == first.paired
     assert peak < 15e6, f"{peak / 1e6:.0f} MB"  # 40 trials' series as Python lists: about 55 MB
+
+
+def test_an_experiment_json_that_differs_hugely_is_refused_in_a_short_line(done, tmp_path):
+    # the line repeated both values whole: a hand-edited experiment.json of 5 MB made a 5.7 MB line,
+    # one with 10,000 keys a part for each
+    import json
+
+    for edit in ({"overrides": ["x" * 5_000_000]}, {f"key{i}": i for i in range(10_000)}):
+        out = tmp_path / f"e{len(edit)}"
+        shutil.copytree(done, out)
+        params = {**json.loads((out / "experiment.json").read_text()), **edit}
+        (out / "experiment.json").write_text(json.dumps(params))
+        with pytest.raises(ConfigError, match=rf"^{out} holds a different experiment \(") as err:
+            run_experiment("constraints", workers=1, out=out, **SWEEP)
+        assert len(str(err.value)) < 600, len(str(err.value))

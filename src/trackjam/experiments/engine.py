@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 import trackjam
 from trackjam.config import Scenario, scenario_to_dict
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
-from trackjam.errors import ConfigError, OutputError
+from trackjam.errors import ConfigError, OutputError, shortened
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
     SWARM,
@@ -165,8 +165,9 @@ def _check_out(out: Path, params: dict) -> None:
     if meta.exists() or meta.is_symlink():
         old = read_parameters(meta)
         diff = [k for k in sorted(set(old) | set(params)) if old.get(k) != params.get(k)]
-        if diff:
-            parts = ", ".join(f"{k}: {old.get(k)!r} there, {params.get(k)!r} now" for k in diff)
+        if diff:  # each value shortened: a hand-edited experiment.json may hold megabytes
+            parts = _names([f"{shortened(k, 40)}: {shortened(repr(old.get(k)), 60)} there, "
+                            f"{shortened(repr(params.get(k)), 60)} now" for k in diff], shown=len(params))
             raise ConfigError(f"{out} holds a different experiment ({parts}); choose another --out")
         if (out / "trials").exists() and not (out / "trials").is_dir():
             raise ConfigError(f"--out {out}: trials is a file, not a folder")
