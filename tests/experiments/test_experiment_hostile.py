@@ -295,3 +295,15 @@ def test_an_experiment_json_that_differs_hugely_is_refused_in_a_short_line(done,
         with pytest.raises(ConfigError, match=rf"^{out} holds a different experiment \(") as err:
             run_experiment("constraints", workers=1, out=out, **SWEEP)
         assert len(str(err.value)) < 600, len(str(err.value))
+
+
+@pytest.mark.parametrize("option", ["trials", "steps", "workers"])
+@pytest.mark.parametrize("sign", [1, -1])
+def test_an_integer_of_thousands_of_digits_is_one_short_line(tmp_path, option, sign):
+    # --workers 9...9 (4000 digits) was an OverflowError traceback; --trials the same a line of
+    # 15,000 characters; a negative one repeated its 4000 digits
+    options = {**SWEEP, "workers": 1, option: sign * (10**4000 - 1)}
+    with pytest.raises(ConfigError, match=rf"^--{option} ") as err:
+        run_experiment("constraints", **options, out=tmp_path / "e")
+    assert len(str(err.value)) < 300, str(err.value)[:300]
+    assert not (tmp_path / "e").exists()

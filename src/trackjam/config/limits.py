@@ -235,22 +235,23 @@ def check_trial_runs(trials: int, configurations: int) -> None:
     (configuration, trial) scenario is built and checked before the first trial runs."""
     runs = trials * configurations
     if runs > MAX_TRIAL_RUNS:
-        raise ConfigError(
-            f"--trials {trials}: {runs:,} trial runs ({configurations} configurations x {trials:,} trials), "
-            f"past the cap of {MAX_TRIAL_RUNS:,}; lower --trials"
-        )
+        counted = (f"{runs:,} trial runs ({configurations} configurations x {trials:,} trials)" if trials < 10**30
+                   else "more than 10^30 trial runs")
+        raise ConfigError(f"--trials {shown_integer(trials)}: {counted}, past the cap of {MAX_TRIAL_RUNS:,}; lower --trials")
 
 
 def check_workers(workers: int, trial_memory: float) -> None:
     """Refuse (one line, naming --workers) a local pool that cannot fit this machine: each worker
     is a process of about ``WORKER_BYTES`` holding one trial at a time."""
-    need = workers * (WORKER_BYTES + trial_memory)
+    each = WORKER_BYTES + trial_memory
     budget = memory_budget()
-    if need > budget:
-        most = max(1, int(budget // (WORKER_BYTES + trial_memory)))
+    if workers > budget / each:  # compared exactly: workers * each overflowed a float past 309 digits
+        most = max(1, int(budget // each))
+        held = (f"{workers} worker processes would hold about {_bytes(workers * each)} of memory," if workers < 10**30
+                else f"that many worker processes of about {_bytes(each)} each would hold")
         raise ConfigError(
-            f"--workers {workers}: {workers} worker processes would hold about {_bytes(need)} of memory, more than "
-            f"half of this machine's ({_bytes(2 * budget)}); use at most {most}"
+            f"--workers {shown_integer(workers)}: {held} more than half of this machine's ({_bytes(2 * budget)}); "
+            f"use at most {most}"
         )
 
 

@@ -118,6 +118,11 @@ class ExperimentResult:
     paired: list[dict[str, Any]] = field(default_factory=list)  # rows of paired.csv (none without pairs)
 
 
+def _shown(value: Any) -> str:
+    """An option's value as a message shows it: an integer by :func:`shown_integer`, else its repr."""
+    return shown_integer(value) if isinstance(value, int) else repr(value)
+
+
 def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
                 trial: TrialFunction) -> dict:
     grid = {} if experiment.grid is None else {"grid": experiment.grid}
@@ -307,14 +312,14 @@ def run_experiment(
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
-        raise ConfigError(f"--trials must be a positive integer, got {trials!r}")
+        raise ConfigError(f"--trials must be a positive integer, got {_shown(trials)}")
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-        raise ConfigError(f"--steps must be a positive integer, got {steps!r}")
+        raise ConfigError(f"--steps must be a positive integer, got {_shown(steps)}")
     if steps > MAX_STEPS:  # else blamed on the preset, "with --set" when none was given
         raise ConfigError(f"--steps {shown_integer(steps)}: must be an integer in [1, {MAX_STEPS}]")
     check_seed(seed)  # the range `run --seed` takes (SeedSequence would take any size)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
+        raise ConfigError(f"--workers must be a positive integer, got {_shown(workers)}")
     if workers is not None and scheduler:
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
     if scheduler is not None:  # an empty one ran the trials locally, without a word
