@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -255,6 +256,18 @@ def test_a_pre_flight_times_out_on_a_silent_port():
 def test_a_malformed_scheduler_address_is_refused(address):
     with pytest.raises(ConfigError, match="not an address of the form tcp://HOST:PORT"):
         parse_scheduler_address(address)
+
+
+@pytest.mark.parametrize("address", ["tcp://sched..local:8786", f"tcp://{'a' * 64}.local:8786", "tcp://.sched:8786"])
+def test_a_host_name_that_cannot_be_looked_up_is_refused_up_front(address, tmp_path):
+    # a typo (an empty label) or a label past 63 characters made the name lookup raise a
+    # UnicodeError (the idna codec): a traceback, once the scenarios were built
+    host = address[len("tcp://"):].rsplit(":", 1)[0]
+    with pytest.raises(ConfigError, match=rf"^--scheduler '{re.escape(address)}': host '{re.escape(host)}' is not a valid host name"):
+        parse_scheduler_address(address)
+    with pytest.raises(ConfigError, match="is not a valid host name"):
+        run_experiment("constraints", scheduler=address, out=tmp_path / "e", **SWEEP)
+    assert not (tmp_path / "e").exists()
 
 
 def test_scheduler_addresses_parse():

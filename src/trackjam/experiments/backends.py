@@ -149,6 +149,11 @@ def parse_scheduler_address(address: str) -> tuple[str, str, int]:
     m = _ADDRESS.match(address.strip())
     if m is None or not 0 < int(m["port"]) < 65536:
         raise ConfigError(f"--scheduler {address!r}: not an address of the form tcp://HOST:PORT")
+    try:  # what the name lookup does first; its UnicodeError (an empty label, one past 63 characters) is no OSError
+        m["host"].strip("[]").encode("idna")
+    except UnicodeError as err:
+        reason = str(err).rpartition("UnicodeError: ")[2].rstrip(")") or "idna"
+        raise ConfigError(f"--scheduler {address!r}: host {m['host']!r} is not a valid host name ({reason})") from None
     scheme = m["scheme"] or "tcp"
     if scheme not in ("tcp", *TCP_CARRIED):
         # ucx:// without ucx-py left a half-built client whose exit hung 10 s and printed a traceback
