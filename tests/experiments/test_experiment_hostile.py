@@ -307,3 +307,14 @@ def test_an_integer_of_thousands_of_digits_is_one_short_line(tmp_path, option, s
         run_experiment("constraints", **options, out=tmp_path / "e")
     assert len(str(err.value)) < 300, str(err.value)[:300]
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("options", [{"name": "a" * 100_000}, {"scheduler": "a" * 100_000},
+                                     {"scheduler": "tcp://" + "a." * 50_000 + "b:8786"}])
+def test_a_name_or_address_of_a_hundred_thousand_characters_is_one_short_line(tmp_path, options):
+    # both were echoed whole: a line of 100 kB
+    options = {"name": "constraints", **SWEEP, **options}
+    with pytest.raises(ConfigError) as err:
+        run_experiment(**options, out=tmp_path / "e")
+    assert len(str(err.value)) < 300, str(err.value)[:300]
+    assert not (tmp_path / "e").exists()

@@ -25,13 +25,15 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 
 CONNECT_TIMEOUT_S = 5.0
 HANDSHAKE_MAX_BYTES = 1 << 20  # a scheduler's handshake is ~60 bytes; garbage reads as exabytes
 PARENT_POLL_S = 0.2
 # Dask schemes over TCP whose server waits for the client: a refused port is found at once, as for tcp
 TCP_CARRIED = ("tls", "ws", "wss")
+ADDRESS_MAX = 300  # a host name is at most 253 characters; a longer address is refused before any lookup
+ADDRESS_SHOWN = 80  # characters of a --scheduler value a message shows
 _ADDRESS = re.compile(r"^(?:(?P<scheme>[a-z][a-z0-9+.-]*)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})/?$")
 
 
@@ -146,9 +148,9 @@ def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[
 
 def parse_scheduler_address(address: str) -> tuple[str, str, int]:
     """(scheme, host, port) of ``[scheme://]HOST:PORT``, or a one-line ConfigError."""
-    m = _ADDRESS.match(address.strip())
+    m = _ADDRESS.match(address.strip()) if len(address) <= ADDRESS_MAX else None
     if m is None or not 0 < int(m["port"]) < 65536:
-        raise ConfigError(f"--scheduler {address!r}: not an address of the form tcp://HOST:PORT")
+        raise ConfigError(f"--scheduler {shortened(address, ADDRESS_SHOWN)!r}: not an address of the form tcp://HOST:PORT")
     try:  # what the name lookup does first; its UnicodeError (an empty label, one past 63 characters) is no OSError
         m["host"].strip("[]").encode("idna")
     except UnicodeError as err:

@@ -40,7 +40,7 @@ from trackjam.config import (
     validate_scenario,
 )
 from trackjam.config.loading import overridden_keys
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 from trackjam.experiments.experiment import (  # noqa: F401  (the experiments' vocabulary, from here too)
     BASE_PRESET,
     DRAW,
@@ -245,7 +245,7 @@ def get_experiment(name: str, grid: str | None = None) -> Experiment:
     try:
         experiment = EXPERIMENTS[name]
     except KeyError:
-        raise ConfigError(f"unknown experiment {name!r}; choose one of: {', '.join(EXPERIMENTS)}") from None
+        raise ConfigError(f"unknown experiment {shortened(name, 40)!r}; choose one of: {', '.join(EXPERIMENTS)}") from None
     if grid is None:
         return experiment
     if experiment.trials != SWARM:
