@@ -18,6 +18,7 @@ import pyarrow.parquet as pq
 import pytest
 from sweep_helpers import ENV, SWEEP, free_port, kill, start, wait_for_files
 
+from trackjam.config import load_scenario
 from trackjam.errors import ConfigError
 from trackjam.experiments.backends import check_dask_scheduler, parse_scheduler_address
 from trackjam.experiments.engine import run_experiment, summarise_folder
@@ -373,3 +374,25 @@ def test_a_scheduler_without_workers_is_said_not_waited_on_in_silence(capsys):
         kill(scheduler)
     err = capsys.readouterr().err
     assert err == f"trackjam: the Dask scheduler at {address} has no workers yet; the trials wait for one\n"
+
+
+def test_a_trial_file_without_a_fingerprint_is_taken_on_its_seed(fresh, tmp_path, capsys):
+    """Trial files of a trackjam that wrote no fingerprint (the committed sweeps) are read back,
+    not run again: only a fingerprint that differs marks a file of other settings."""
+    out = tmp_path / "old"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    for p in (out / "trials").iterdir():
+        table = pq.read_table(p)
+        pq.write_table(table.drop_columns(["scenario"]), p)
+    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "progress": "lines"})
+    assert r.ran == 0 and capsys.readouterr().err == ""
+    assert (out / "summary.csv").read_bytes() == (fresh / "summary.csv").read_bytes()
+
+
+def test_the_fingerprint_counts_only_what_differs_from_the_defaults():
+    from trackjam.experiments.engine import scenario_digest
+
+    s = load_scenario("paper-fig3")
+    assert scenario_digest(s) == scenario_digest(load_scenario("paper-fig3", ["control.lead=0"]))
+    assert scenario_digest(s) != scenario_digest(load_scenario("paper-fig3", ["control.lead=0.5"]))
+    assert scenario_digest(s) != scenario_digest(load_scenario("paper-fig3", steps=29))

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import trackjam
-from trackjam.config import Scenario, scenario_to_dict
+from trackjam.config import Scenario
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
 from trackjam.errors import ConfigError, OutputError, shortened
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
@@ -75,8 +75,10 @@ def simulate_trial(scenario: Scenario) -> dict[str, Any]:
 
 def scenario_digest(scenario: Scenario) -> str:
     """A fingerprint of everything a trial's scenario sets (seed, steps, every setting, so every
-    --set): a trial file of another run of the same experiment is told apart from this run's."""
-    text = json.dumps(scenario_to_dict(scenario), sort_keys=True)
+    --set): a trial file of another run of the same experiment is told apart from this run's.
+    Only what differs from the defaults counts, so an option a later trackjam adds (its default
+    the earlier behaviour) does not make every earlier trial file look foreign."""
+    text = json.dumps(scenario.model_dump(mode="json", exclude_defaults=True), sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -228,7 +230,9 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
         if record["seed"] != scenarios[key].seed:  # run with other random streams (an earlier trackjam's seeding)
             stale.append(p.name)
             continue
-        if record.get("scenario") != scenario_digest(scenarios[key]):  # copied from a run with other --steps or --set
+        # copied from a run with other --steps or --set; a file of a trackjam that wrote no
+        # fingerprint (the committed sweeps in docs/experiments) is taken on its seed
+        if record.get("scenario", None) not in (None, scenario_digest(scenarios[key])):
             other.append(p.name)
             continue
         records[key] = _figures(record)
@@ -240,7 +244,7 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
                      f"trackjam's seeds) and will be run again: {_names(stale)}")
     if other:
         notes.append(f"{len(other)} trial file(s) in {folder} were run with other settings than this run's (another "
-                     f"--steps or --set, or a trackjam that did not record them) and will be run again: {_names(other)}")
+                     f"--steps or --set) and will be run again: {_names(other)}")
     if foreign:
         notes.append(f"ignoring {len(foreign)} file(s) in {folder} that are not trials of this experiment: {_names(foreign)}")
     return records, notes
