@@ -318,3 +318,35 @@ def test_a_name_or_address_of_a_hundred_thousand_characters_is_one_short_line(tm
         run_experiment(**options, out=tmp_path / "e")
     assert len(str(err.value)) < 300, str(err.value)[:300]
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="the lock uses fcntl.flock")
+def test_a_second_sweep_into_an_out_being_written_is_refused_and_changes_nothing(tmp_path):
+    import fcntl
+
+    out = tmp_path / "e"
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    (out / "trials" / trial_filename(2, 1)).unlink()  # a trial left to run
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    with open(out / "experiment.json", "rb") as other:  # a sweep writing there holds this lock
+        fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(ConfigError, match=r"another sweep is writing there .*choose another --out") as err:
+            run_experiment("constraints", workers=1, out=out, **SWEEP)
+        assert "\n" not in str(err.value)
+        assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert run_experiment("constraints", workers=1, out=out, **SWEEP).ran == 1  # released: it resumes
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="the lock uses fcntl.flock")
+def test_the_lock_is_released_when_a_sweep_fails(tmp_path):
+    out = tmp_path / "e"
+
+    def failing(scenario):
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError, match="boom"):
+        run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trial": failing})
+    import fcntl
+
+    with open(out / "experiment.json", "rb") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)  # raises BlockingIOError if still held

@@ -11,6 +11,7 @@ there is one) have all been checked.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -18,7 +19,12 @@ import os
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterator, Mapping
+
+try:
+    import fcntl
+except ImportError:  # not on Windows: two sweeps into one OUT there are not told apart
+    fcntl = None
 
 import trackjam
 from trackjam.config import Scenario
@@ -194,6 +200,30 @@ def _claim(out: Path, params: dict) -> None:
         raise ConfigError(f"--out {out}: cannot write there ({err.strerror or err})") from None
 
 
+@contextlib.contextmanager
+def _locked(out: Path) -> Iterator[None]:
+    """Hold an exclusive lock on OUT/experiment.json while a sweep writes into OUT: a second sweep
+    into the same OUT is refused in one line, where it would have deleted the first one's
+    in-progress temporary files and run its trials twice. The lock goes with the process (even
+    after a SIGKILL); the file is written once, so the lock holds the one inode every sweep opens."""
+    if fcntl is None:
+        yield
+        return
+    try:
+        fh = open(out / "experiment.json", "rb")
+    except OSError as err:
+        raise ConfigError(f"--out {out}: cannot read experiment.json ({err.strerror or err})") from None
+    with fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ConfigError(f"--out {out}: another sweep is writing there (its experiment.json is locked); "
+                              "wait for it to finish, or choose another --out") from None
+        except OSError:  # a file system without locks (some network mounts): go on unlocked
+            pass
+        yield
+
+
 def record_keys(experiment: Experiment) -> tuple[str, ...]:
     """The figures every trial record of ``experiment`` must hold: its metrics and the timings."""
     return tuple(dict.fromkeys(k for _, k, _ in experiment.metrics + experiment.counts + TIMING))
@@ -343,8 +373,10 @@ def run_experiment(
             what = "a folder" if (out / written).is_dir() else "a device or a pipe"
             raise ConfigError(f"--out {out}: {written} is {what}, not a file; move it away or choose another --out")
 
-    with open_executor(workers, scheduler) as (executor, window):
+    with contextlib.ExitStack() as stack:
+        executor, window = stack.enter_context(open_executor(workers, scheduler))
         _claim(out, params)
+        stack.enter_context(_locked(out))
         folder = out / "trials"
         found, notes = _read_back(folder, experiment, scenarios)
         for line in notes:
