@@ -350,3 +350,22 @@ def test_the_lock_is_released_when_a_sweep_fails(tmp_path):
 
     with open(out / "experiment.json", "rb") as fh:
         fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)  # raises BlockingIOError if still held
+
+
+def test_an_out_killed_between_its_experiment_json_and_its_trials_folder_resumes(tmp_path, monkeypatch):
+    import trackjam.experiments.engine as engine
+
+    out = tmp_path / "e"
+    real_mkdir = Path.mkdir
+
+    def killed(self, *args, **kwargs):  # the sweep dies as it creates trials/
+        if self.name == "trials":
+            raise KeyboardInterrupt
+        return real_mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", killed)
+    with pytest.raises(KeyboardInterrupt):
+        engine.run_experiment("constraints", workers=1, out=out, **SWEEP)
+    monkeypatch.setattr(Path, "mkdir", real_mkdir)
+    assert (out / "experiment.json").is_file() and not (out / "trials").exists()
+    assert engine.run_experiment("constraints", workers=1, out=out, **SWEEP).ran == 4

@@ -190,12 +190,15 @@ def _check_out(out: Path, params: dict) -> None:
 
 
 def _claim(out: Path, params: dict) -> None:
-    """Create OUT/trials and write experiment.json (atomically) unless it is there."""
+    """Write experiment.json (atomically) unless it is there, then create OUT/trials: in that
+    order a sweep killed in between leaves an OUT that resumes (the other order left a
+    ``trials/`` without experiment.json, which a rerun refuses as a folder holding something else)."""
     try:
-        (out / "trials").mkdir(parents=True, exist_ok=True)
+        out.mkdir(parents=True, exist_ok=True)
         meta = out / "experiment.json"
         if not meta.exists():
             atomic_write(meta, lambda tmp: tmp.write_text(json.dumps(params, indent=2) + "\n"))
+        (out / "trials").mkdir(exist_ok=True)
     except OSError as err:
         raise ConfigError(f"--out {out}: cannot write there ({err.strerror or err})") from None
 
