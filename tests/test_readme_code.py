@@ -34,9 +34,9 @@ def _run(code: str, cwd: Path) -> str:
 
 
 def test_the_readme_has_the_python_blocks_these_tests_run():
-    # four blocks: the API, step by step, the environment, the comparison by seed; a new block
-    # must be added to a test below
-    assert len(BLOCKS) == 4
+    # five blocks: the API, step by step, the environment, the comparison by seed, an experiment
+    # of one's own; a new block must be added to a test below
+    assert len(BLOCKS) == 5
 
 
 def test_the_python_api_blocks_run_as_written(tmp_path):
@@ -101,3 +101,13 @@ def test_the_readmes_policy_table_rows_are_what_rollout_gives_today():
         want_ret, _, want_pen = rows[(pointing, name)]
         assert shown(ret) == want_ret, (pointing, name)
         assert want_pen == "0" if not any(pen) else shown(pen) == want_pen, (pointing, name)
+
+
+def test_an_experiment_registered_from_a_script_runs_as_written(tmp_path):
+    """Extending trackjam: an experiment added to EXPERIMENTS outside the package runs through
+    run_experiment and writes its paired comparison."""
+    out = _run(_block('EXPERIMENTS["lead"]'), tmp_path)
+    label, diff = out.strip().splitlines()[-1].rsplit(" ", 1)
+    assert label == "lead 0 -> 0.5" and float(diff) == float(diff)
+    written = {p.name for p in (tmp_path / "runs" / "experiment-lead").iterdir()}
+    assert {"summary.csv", "paired.csv", "lead.png", "trials"} <= written
