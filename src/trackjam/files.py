@@ -35,6 +35,14 @@ def check_writable(folder: Path, where: str) -> None:
         raise ConfigError(f"{where}: {folder} is not writable ({err.strerror})") from None
 
 
+def taken_by(path: Path) -> str | None:
+    """What holds a result's name instead of a regular file ("a folder", or "a device or a pipe"),
+    said in the one line refusing the output folder; None for a file or no entry."""
+    if not path.exists() or path.is_file():
+        return None
+    return "a folder" if path.is_dir() else "a device or a pipe"
+
+
 def special_file(path: Path) -> bool:
     """``path`` is a device, a pipe or a socket: neither a regular file nor a folder. A rename
     onto it would replace the node itself (as root, ``--json /dev/null`` replaced the device)."""

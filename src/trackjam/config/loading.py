@@ -189,9 +189,9 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
 
 
 def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
-    """Where the problem of ``key`` is blamed (``overridden``'s label of the ``--set`` item or
-    keyword that set it) (or, for a problem between keys, that the message
-    names); else one that wrote into the section ``key`` is a required field of (``--set
+    """Where the problem of ``key`` is blamed: ``overridden``'s label of the ``--set`` item or
+    keyword that set ``key`` (or, for a problem between keys, that the message names); else of
+    one that wrote into the section ``key`` is a required field of (``--set
     filter.visibility.hide=0.5`` makes a visibility without ``reappear``), or into a section a
     problem between keys names as a key, in backquotes (`` `target` `` beside `` `targets` ``)."""
     for set_key, item in overridden.items():
@@ -473,8 +473,9 @@ def load_scenario(
     data = apply_overrides(data, overrides)
     blame = overridden_keys(overrides)
     for key, value in fields.items():
-        set_dotted(data, key.replace("__", "."), value)
-        blame[key.replace("__", ".")] = f"load_scenario({shortened(f'{key}={value!r}', SET_SHOWN)})"
+        dotted = key.replace("__", ".")
+        set_dotted(data, dotted, value)
+        blame[dotted] = f"load_scenario({shortened(f'{key}={value!r}', SET_SHOWN)})"
     return validate_scenario(data, label, blame)
 
 

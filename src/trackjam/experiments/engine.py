@@ -56,7 +56,7 @@ from trackjam.experiments.summary import (
     write_table,
     write_trial,
 )
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, taken_by
 
 TrialFunction = Callable[[Scenario], Mapping[str, Any]]
 
@@ -126,9 +126,12 @@ class ExperimentResult:
     paired: list[dict[str, Any]] = field(default_factory=list)  # rows of paired.csv (none without pairs)
 
 
-def _shown(value: Any) -> str:
-    """An option's value as a message shows it: an integer by :func:`shown_integer`, else its repr."""
-    return shown_integer(value) if isinstance(value, int) else repr(value)
+def _check_count(option: str, value: Any) -> None:
+    """Refuse, in one line naming ``option``, a count that is not a positive integer (a bool is
+    not one; an integer of many digits is shown by its size, :func:`shown_integer`)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        shown = shown_integer(value) if isinstance(value, int) else repr(value)
+        raise ConfigError(f"{option} must be a positive integer, got {shown}")
 
 
 def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
@@ -348,15 +351,13 @@ def run_experiment(
     """
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
-    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
-        raise ConfigError(f"--trials must be a positive integer, got {_shown(trials)}")
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-        raise ConfigError(f"--steps must be a positive integer, got {_shown(steps)}")
+    _check_count("--trials", trials)
+    _check_count("--steps", steps)
     if steps > MAX_STEPS:  # else blamed on the preset, "with --set" when none was given
         raise ConfigError(f"--steps {shown_integer(steps)}: must be an integer in [1, {MAX_STEPS}]")
     check_seed(seed)  # the range `run --seed` takes (SeedSequence would take any size)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ConfigError(f"--workers must be a positive integer, got {_shown(workers)}")
+    if workers is not None:
+        _check_count("--workers", workers)
     if workers is not None and scheduler:
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
     if scheduler is not None:  # an empty one ran the trials locally, without a word
@@ -372,8 +373,7 @@ def run_experiment(
     params = _parameters(experiment, trials, steps, seed, overrides, trial)
     _check_out(out, params)
     for written in ("summary.csv", "timing.csv", "paired.csv", experiment.figure):
-        if (out / written).exists() and not (out / written).is_file():
-            what = "a folder" if (out / written).is_dir() else "a device or a pipe"
+        if what := taken_by(out / written):
             raise ConfigError(f"--out {out}: {written} is {what}, not a file; move it away or choose another --out")
 
     with contextlib.ExitStack() as stack:

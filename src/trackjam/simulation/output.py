@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from trackjam.errors import ConfigError, OutputError
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, taken_by
 from trackjam.simulation.build import figure_settings, scenario_text
 
 if TYPE_CHECKING:
@@ -58,8 +58,7 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
             # an earlier run of this scenario, to be replaced: a name of ours that is not a file
             # (a folder) would fail only once the run is done and the files before it rewritten
             for name in RUN_FILES:
-                if (out / name).exists() and not (out / name).is_file():
-                    what = "a folder" if (out / name).is_dir() else "a device or a pipe"
+                if what := taken_by(out / name):
                     fix = "pass --out FOLDER" if default else "choose another --out"
                     raise ConfigError(f"{where}: {name} is {what}, not a file; move it away or {fix}")
     check_writable(out if out.is_dir() else existing_folder(out, where), where)
