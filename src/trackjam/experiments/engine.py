@@ -16,7 +16,7 @@ import hashlib
 import json
 import math
 import os
-from concurrent.futures import FIRST_COMPLETED, Future, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
@@ -173,8 +173,9 @@ def read_parameters(meta: Path) -> dict:
     return params
 
 
-def _check_out(out: Path, params: dict) -> None:
-    """Refuse an OUT that is a file, unwritable, or holds something else; writes nothing."""
+def _check_out(out: Path, params: dict, figure: str) -> None:
+    """Refuse an OUT that is a file, unwritable, holds something else, or holds something other
+    than a file where a result goes (summary.csv, timing.csv, paired.csv, ``figure``); writes nothing."""
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out}: is a file, not a folder")
     meta = out / "experiment.json"
@@ -190,6 +191,9 @@ def _check_out(out: Path, params: dict) -> None:
     elif out.is_dir() and any(out.iterdir()):
         raise ConfigError(f"{out} is not empty and holds no experiment.json; choose another --out")
     check_writable(existing_folder(out, f"--out {out}"), f"--out {out}")
+    for written in ("summary.csv", "timing.csv", "paired.csv", figure):
+        if what := taken_by(out / written):
+            raise ConfigError(f"--out {out}: {written} is {what}, not a file; move it away or choose another --out")
 
 
 def _claim(out: Path, params: dict) -> None:
@@ -351,6 +355,28 @@ def run_experiment(
     """
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
+    _check_arguments(trials, steps, seed, workers, scheduler)
+    overrides = list(overrides or [])
+    out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
+    scenarios, configurations = _planned(experiment, trials, steps, seed, overrides, workers, scheduler)
+    report = make_reporter(progress, experiment, configurations, total=len(scenarios))
+    params = _parameters(experiment, trials, steps, seed, overrides, trial)
+    _check_out(out, params, experiment.figure)
+
+    with contextlib.ExitStack() as stack:  # the scheduler reached, then experiment.json, trials/ and the lock
+        executor, window = stack.enter_context(open_executor(workers, scheduler))
+        _claim(out, params)
+        stack.enter_context(_locked(out))
+        folder = out / "trials"
+        records, todo, notes = _resume(folder, experiment, scenarios, report)
+        _run_trials(executor, window, trial, name, experiment, scenarios, todo, folder, records, report)
+
+    return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes)
+
+
+def _check_arguments(trials: int, steps: int, seed: int, workers: int | None, scheduler: str | None) -> None:
+    """Refuse, in one line naming the option, a --trials, --steps, --seed, --workers or
+    --scheduler a sweep cannot take (--workers with --scheduler too), before anything is built."""
     _check_count("--trials", trials)
     _check_count("--steps", steps)
     if steps > MAX_STEPS:  # else blamed on the preset, "with --set" when none was given
@@ -362,70 +388,90 @@ def run_experiment(
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
     if scheduler is not None:  # an empty one ran the trials locally, without a word
         parse_scheduler_address(scheduler)
-    overrides = list(overrides or [])
-    out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
-    check_trial_runs(trials, len(experiment.configurations))
 
+
+def _planned(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
+             workers: int | None, scheduler: str | None):
+    """:func:`_plan`, once the sweep is known to be small enough to build up front, then the local
+    pool's workers checked against the memory its trials need (a cluster's are its own)."""
+    check_trial_runs(trials, len(experiment.configurations))
     scenarios, configurations = _plan(experiment, trials, steps, seed, overrides)
     if scheduler is None:
         check_workers(workers or os.cpu_count() or 1, max(run_memory(s) for s in scenarios.values()))
-    report = make_reporter(progress, experiment, configurations, total=len(scenarios))
-    params = _parameters(experiment, trials, steps, seed, overrides, trial)
-    _check_out(out, params)
-    for written in ("summary.csv", "timing.csv", "paired.csv", experiment.figure):
-        if what := taken_by(out / written):
-            raise ConfigError(f"--out {out}: {written} is {what}, not a file; move it away or choose another --out")
+    return scenarios, configurations
 
-    with contextlib.ExitStack() as stack:
-        executor, window = stack.enter_context(open_executor(workers, scheduler))
-        _claim(out, params)
-        stack.enter_context(_locked(out))
-        folder = out / "trials"
-        found, notes = _read_back(folder, experiment, scenarios)
-        for line in notes:
-            report.note(line)
-        records = [found[key] for key in sorted(found)]
-        todo = [key for key in scenarios if key not in found]
-        report.start(records)
-        if todo and trial in _SIMULATING:
-            report.note("each worker compiles the kernels, or loads them from numba's cache, before its first "
-                        "trial of a configuration (untimed; the first run on a machine compiles for up to a minute)")
-        pending: set[Future] = set()
-        queue = iter(todo)
-        try:
-            while True:
-                while len(pending) < window and (key := next(queue, None)) is not None:
-                    pending.add(executor.submit(run_trial, trial, name, key[0], key[1], scenarios[key]))
-                if not pending:
-                    break
-                if isinstance(executor, SerialExecutor):
-                    executor.run_next()
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for f in finished:
-                    record = f.result()
-                    missing = [k for k in record_keys(experiment) if k not in record]
-                    if missing:
-                        raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} summarises them)")
-                    try:
-                        write_trial(folder, record)
-                    except OSError as err:
-                        raise OutputError(
-                            f"{folder}: trial {record['trial']} of configuration {record['config']} cannot be written "
-                            f"({err.strerror or err}); the {len(records)} trials written before it are intact"
-                        ) from None
-                    record = _figures(record)
-                    records.append(record)
-                    report.trial(record)
-        finally:
-            for f in pending:
-                f.cancel()
-            report.stop()
 
-    return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes)
+def _resume(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[int, int], Scenario],
+            report) -> tuple[list[dict], list[tuple[int, int]], list[str]]:
+    """The trial records already in ``folder`` (by (config, trial)), the keys of the trials left
+    to run, in ``scenarios``' order, and the notes on what the read-back passed over, each said
+    through ``report``."""
+    found, notes = _read_back(folder, experiment, scenarios)
+    for line in notes:
+        report.note(line)
+    records = [found[key] for key in sorted(found)]
+    todo = [key for key in scenarios if key not in found]
+    return records, todo, notes
+
+
+def _run_trials(executor: Executor, window: int, trial: TrialFunction, name: str, experiment: Experiment,
+                scenarios: Mapping[tuple[int, int], Scenario], todo: list[tuple[int, int]], folder: Path,
+                records: list[dict], report) -> None:
+    """Run the ``todo`` trials through ``executor``, at most ``window`` in flight, each written to
+    ``folder`` and added to ``records`` as it finishes (:func:`_keep`). The progress starts from
+    the ``records`` found; on the way out (an error, Ctrl-C) the trials not started are cancelled
+    and the progress stopped."""
+    report.start(records)
+    if todo and trial in _SIMULATING:
+        report.note("each worker compiles the kernels, or loads them from numba's cache, before its first "
+                    "trial of a configuration (untimed; the first run on a machine compiles for up to a minute)")
+    pending: set[Future] = set()
+    queue = iter(todo)
+    try:
+        while True:
+            while len(pending) < window and (key := next(queue, None)) is not None:
+                pending.add(executor.submit(run_trial, trial, name, key[0], key[1], scenarios[key]))
+            if not pending:
+                break
+            if isinstance(executor, SerialExecutor):
+                executor.run_next()
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in finished:
+                _keep(f.result(), folder, name, experiment, records, report)
+    finally:
+        for f in pending:
+            f.cancel()
+        report.stop()
+
+
+def _keep(record: dict, folder: Path, name: str, experiment: Experiment, records: list[dict], report) -> None:
+    """Check a finished trial's ``record`` (:func:`_check_record`), write it to ``folder``, then add
+    its figures to ``records`` and the progress."""
+    _check_record(record, name, experiment)
+    try:
+        write_trial(folder, record)
+    except OSError as err:
+        raise OutputError(
+            f"{folder}: trial {record['trial']} of configuration {record['config']} cannot be written "
+            f"({err.strerror or err}); the {len(records)} trials written before it are intact"
+        ) from None
+    figures = _figures(record)
+    records.append(figures)
+    report.trial(figures)
+
+
+def _check_record(record: Mapping[str, Any], name: str, experiment: Experiment) -> None:
+    """Refuse, with a ValueError naming them, a record that lacks figures the experiment
+    summarises (a trial function's mistake), before the record is written."""
+    missing = [k for k in record_keys(experiment) if k not in record]
+    if missing:
+        raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} summarises them)")
 
 
 def _finish(out: Path, experiment, configurations: list[dict], records: list[Mapping], ran: int,
             notes: list[str]) -> ExperimentResult:
+    """Write summary.csv, timing.csv, paired.csv (where there are pairs) and the figure from
+    ``records``, each atomically; one that cannot be written is one line (an OutputError)."""
     from trackjam.experiments.figures import write_figure
 
     summary = table_rows(records, configurations, experiment.metrics, experiment.counts)
