@@ -289,6 +289,42 @@ def test_the_cli_with_a_bad_address_prints_one_line_and_no_traceback(tmp_path):
         assert not (tmp_path / "out").exists()
 
 
+def test_a_name_lookup_that_does_not_answer_is_one_line_within_the_timeout(tmp_path, monkeypatch):
+    # getaddrinfo takes no timeout: a slow or unreachable DNS server held the pre-flight as long as it liked
+    pytest.importorskip("distributed")  # imported here, so that the timing below is the lookup's
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.experiments import backends
+
+    release = threading.Event()
+
+    def silent_lookup(*args, **kwargs):  # never the real one: nothing is looked up, not even localhost
+        release.wait(60)
+        raise socket.gaierror(socket.EAI_AGAIN, "Temporary failure in name resolution")
+
+    monkeypatch.setattr(backends.socket, "getaddrinfo", silent_lookup)
+    monkeypatch.setattr(backends, "CONNECT_TIMEOUT_S", 0.3)
+    address = f"tcp://localhost:{free_port()}"
+    line = (f"--scheduler '{address}': the name lookup of host 'localhost' did not answer within 0.3 s "
+            "(a slow or unreachable DNS server?); try again, or give its IP address")
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(ConfigError) as err:
+            check_dask_scheduler(address, timeout_s=0.3)
+        assert time.monotonic() - t0 < 2, "the lookup was waited on past the timeout"
+        assert str(err.value) == line
+        t0 = time.monotonic()
+        r = CliRunner().invoke(cli.app, ["experiment", "constraints", "--trials", "1", "--steps", "2",
+                                         "--scheduler", address, "--out", str(tmp_path / "out")])
+        assert time.monotonic() - t0 < 30, "the sweep waited on the lookup"  # it holds 60 s
+    finally:
+        release.set()  # the lookups left behind end now
+    assert r.exit_code == 2, r.output
+    assert r.stderr == f"trackjam: error: {line}\n"
+    assert not (tmp_path / "out").exists()
+
+
 # --- a killed sweep leaves no process behind -----------------------------------------------------
 
 

@@ -7,7 +7,8 @@ cluster, all behind one ``concurrent.futures`` interface.
 - A Dask scheduler is reached in two steps, each bounded by ``CONNECT_TIMEOUT_S``: a plain TCP
   pre-flight that reads the handshake a Dask scheduler sends first and checks that it is one
   (an HTTP or SSH server, or a silent port, would otherwise hang Dask's client or make it
-  allocate a frame size read from garbage), then the client itself.
+  allocate a frame size read from garbage), then the client itself. The pre-flight's name
+  lookup, which takes no timeout of its own, runs in a daemon thread that is waited on as long.
 """
 
 from __future__ import annotations
@@ -181,7 +182,7 @@ def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> 
     where = f"the Dask scheduler at {address}"
     deadline = time.monotonic() + timeout_s
     try:
-        sock = socket.create_connection((host, port), timeout=timeout_s)
+        sock = _connect(_look_up(address, host, port, timeout_s), timeout_s)
     except OSError as err:
         raise ConfigError(f"cannot reach {where} within {timeout_s:g} s: {err.strerror or err}") from None
     if scheme in TCP_CARRIED:  # its server speaks second: only the connection is checked
@@ -199,6 +200,50 @@ def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> 
                               f"{timeout_s:g} s: not a Dask scheduler?") from None
         except (OSError, ValueError) as err:
             raise ConfigError(f"{address} does not speak Dask's protocol ({err}): not a Dask scheduler?") from None
+
+
+def _look_up(address: str, host: str, port: int, timeout_s: float) -> list[tuple]:
+    """``socket.getaddrinfo``'s addresses of ``host`` as ``socket.create_connection`` asks for them,
+    or what it raised (an OSError for an unknown name), within ``timeout_s``: the lookup runs in a
+    daemon thread, since it takes no timeout (a slow or unreachable DNS server held the pre-flight
+    as long as it liked); one that does not answer in time is a one-line ConfigError and is left
+    to finish alone."""
+    answer: list = []
+
+    def look_up() -> None:
+        try:
+            answer.append(socket.getaddrinfo(host, port, 0, socket.SOCK_STREAM))
+        except Exception as err:  # noqa: BLE001 - raised again in the caller's thread, as before
+            answer.append(err)
+
+    thread = threading.Thread(target=look_up, name="scheduler-lookup", daemon=True)
+    thread.start()
+    thread.join(timeout_s)
+    if not answer:
+        raise ConfigError(f"--scheduler {address!r}: the name lookup of host {host!r} did not answer within "
+                          f"{timeout_s:g} s (a slow or unreachable DNS server?); try again, or give its IP address")
+    if isinstance(answer[0], Exception):
+        raise answer[0]
+    return answer[0]
+
+
+def _connect(addresses: list[tuple], timeout_s: float) -> socket.socket:
+    """A socket connected to the first of ``addresses`` (getaddrinfo's) that accepts within
+    ``timeout_s``, else the last one's OSError: what ``socket.create_connection`` does once it
+    has looked the name up."""
+    error = OSError("getaddrinfo returns an empty list")
+    for family, kind, proto, _, sockaddr in addresses:
+        sock = None
+        try:
+            sock = socket.socket(family, kind, proto)
+            sock.settimeout(timeout_s)
+            sock.connect(sockaddr)
+            return sock
+        except OSError as err:
+            error = err
+            if sock is not None:
+                sock.close()
+    raise error
 
 
 def _check_handshake(payload: bytes) -> None:
@@ -232,7 +277,7 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
         from distributed import Client
     except ImportError:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'trackjam[dask]'") from None
-    check_dask_scheduler(address)
+    check_dask_scheduler(address, CONNECT_TIMEOUT_S)  # the timeout as it is now (a test makes it short)
     if parse_scheduler_address(address)[0] == "tls":
         from distributed.security import Security
 
