@@ -431,6 +431,19 @@ class Filter(_Model):
         "covariance of the particles within `radius` of the densest point of its density when they hold at least "
         "`mass` of its weight, else of all of them; null: the mean of all (the paper)",
     )
+    reserve_memory: Integer(0, 100) = Field(
+        0,
+        description="resampling of a new track (ours): a particle whose line one of the last this many scans before "
+        "the current one supported (a measurement near it) keeps a place in the slots reserved for supported "
+        "particles, so a track seen once and then missed is not thinned to a few copies; in [0, 100]; 0: only the "
+        "current scan's support counts",
+    )
+    velocity_jitter: Real(ge=0, le=MAX_SPEED) = Field(
+        0.0,
+        description="regularised resampling of a new track (ours): while the particles a scan supported get the "
+        "resampling's reserved slots (a new or re-found track), each extra copy of a particle has N(0, this^2) added to "
+        f"each velocity component [m/s], in [0, {MAX_SPEED:g}]; 0: plain copies (the paper's resampling)",
+    )
     response: ExpectedResponse | None = Field(
         None,
         description="the jamming fail-safe the filters expect (ours), the fields of target.response: once the team's "

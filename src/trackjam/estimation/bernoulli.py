@@ -84,6 +84,7 @@ GG = _GAMMA @ _GAMMA.T  # Eq. (1)'s process noise is accel_var * Gamma Gamma^T
 # survivors' slots but at most a few birth counts
 RESERVE_SHARE = 0.4
 RESERVE_CAP = 3
+NEVER = 1 << 30  # scans since a scan supported a particle's line: never
 
 
 @dataclass(frozen=True)
@@ -131,6 +132,7 @@ class Young:
     log_w: np.ndarray
     mass: float
     scan: Scan
+    supported: np.ndarray | None = None  # per particle: L_{t-1} > 1 (kept for filter.reserve_memory)
 
 
 @dataclass(frozen=True)
@@ -271,6 +273,8 @@ class FilterParams:
     visibility: tuple[float, float] | None = None  # (hide, reappear) per step; None: always visible (the paper)
     mode: tuple[float, float] | None = None  # filter.mode (radius [m], least weight); None: the mean of s_t (the paper)
     response: FailSafe | None = None  # filter.response: the fail-safe it expects of a jammed target; None: Eq. (1) always
+    reserve_memory: int = 0  # filter.reserve_memory: scans before the current one whose support keeps a reserved slot
+    velocity_jitter: float = 0.0  # filter.velocity_jitter [m/s]: the reserve's extra copies get N(0, this^2) per velocity axis; 0: plain copies
 
 
 class BernoulliFilter:
@@ -320,6 +324,8 @@ class BernoulliFilter:
         self.visibility = None if f.visibility is None else (float(f.visibility[0]), float(f.visibility[1]))
         self.mode = None if f.mode is None else (float(f.mode[0]), float(f.mode[1]))
         self.response = f.response
+        self.reserve_memory = int(f.reserve_memory)
+        self.velocity_jitter = float(f.velocity_jitter)
         self.watch = JamWatch()  # filter.response: the target's jammed steps in a row, and whether it is downed
         if self.mode is not None and not (self.mode[0] > 0.0 and 0.0 < self.mode[1] <= 1.0):
             raise ValueError(f"mode must be (radius > 0, least weight in (0, 1]), got {self.mode}")
@@ -328,6 +334,7 @@ class BernoulliFilter:
         self.log_evidence = 0.0  # log sum_i w_i L_i of the last update: its evidence were the target visible
         self.e = float(np.clip(existence, 0.0, 1.0))
         self._X = self.b.draw(self.rng, self.n)
+        self._age = np.full(self.n, NEVER)  # per row of _X: scans since one supported its line (0: the last)
         self._log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
         self._young: Young | None = None
         self._e_pred: float | None = None  # set by predict(), consumed by update()
@@ -390,10 +397,12 @@ class BernoulliFilter:
         self._last = Estimate(e_pred, mean, cov)
         return self._last
 
-    def _young_at_t(self, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
+    def _young_at_t(self, scan: Scan) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The young component at t: its particles moved by predict(), or drawn again by the
-        two-scan proposal when both its scan and the current one hold measurements."""
+        two-scan proposal when both its scan and the current one hold measurements; with
+        ``filter.reserve_memory``, also which of them their scan at t-1 supported."""
         young = self._young
+        memory = self.reserve_memory > 0
         if self.two_scan and len(young.scan.Z) and len(scan.Z):
             G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
             G_next = Gaussians.of_scan(scan.Z, scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
@@ -402,11 +411,12 @@ class BernoulliFilter:
                 lambda X: young.scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c),
             )
             if np.any(np.isfinite(log_w)):
+                seen = young.scan.log_factors(X0, self.ant, self.noise_std, self.log_lambda_c) > 0.0 if memory else None
                 self._move(X0)
-                return X0, log_w
+                return X0, log_w, seen
         X = young.X.copy()
         self._move(X)
-        return X, young.log_w
+        return X, young.log_w, young.supported
 
     def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float,
                others: Sequence[Scan] = ()) -> Estimate:
@@ -420,11 +430,12 @@ class BernoulliFilter:
         Z, u = scan.Z, scan.u
         G_now = Gaussians.of_scan(Z, u, self.noise_std) if (self.importance and len(Z)) else None
         M = self._young_mass
+        young_seen = None
         with np.errstate(divide="ignore"):
             log_s, log_b = np.log(self._w_surv), np.log(self._w_birth)
             blocks = [(self._X, log_s + np.log1p(-M) + self._log_w)]
             if self._young is not None:
-                XY, log_wY = self._young_at_t(scan)
+                XY, log_wY, young_seen = self._young_at_t(scan)
                 blocks.append((XY, log_s + np.log(M) + log_wY))
             if self.n_mb:
                 blocks.append((self._m_birth[0], log_b + np.log(self.birth_mix) + self._m_birth[1]))
@@ -458,12 +469,20 @@ class BernoulliFilter:
         W_pool = float(w[:k].sum())
         if W_pool > 0.0:
             n_pool = max(self.n - self.n_young, self.n // 2) if k < len(X) else self.n
-            self._X, self._log_w = self._resample(X[:k], w[:k] / W_pool, log_L[:k] > 0.0, n_pool)
+            age = np.full(k, NEVER)  # the pool: the survivors' rows first, then the young component's
+            n_s = len(self._X)
+            age[:n_s] = np.minimum(self._age, NEVER - 1) + 1
+            if young_seen is not None:  # the young component: supported by its scan at t-1
+                age[n_s:n_s + len(young_seen)][young_seen] = 1
+            age[log_L[:k] > 0.0] = 0
+            self._X, self._log_w, parents = self._resample(X[:k], w[:k] / W_pool, age <= self.reserve_memory, n_pool)
+            self._age = age[parents]
         self._young = None
         if k < len(X):
             log_mass = float(kernel_logsumexp(log_post[k:]))
             if log_mass > -np.inf:
-                self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scan)
+                self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scan,
+                                    log_L[k:] > 0.0 if self.reserve_memory > 0 else None)
         self.e = e
         self._e_pred = None
         self._m_birth = None
@@ -472,32 +491,48 @@ class BernoulliFilter:
         self._last = Estimate(e, mean, cov)
         return self._last
 
-    def _resample(self, X: np.ndarray, w: np.ndarray, supported: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Systematic resampling of the weighted particles to ``n``.
+    def _resample(self, X: np.ndarray, w: np.ndarray, supported: np.ndarray,
+                  n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Systematic resampling of the weighted particles to ``n``: the particles, their
+        log-weights and the index of each one's parent.
 
         ``supported`` marks the particles the scan made more likely (L_i > 1: near a
-        measurement). While a target is new, they carry well under 1% of the mass next to the
-        diffuse "somewhere else in the area" part, so plain resampling keeps a few dozen of
-        them, too few to find the velocity, unobserved at a first detection. When their share
+        measurement), and with ``filter.reserve_memory`` = m (ours) those whose line one of the
+        m scans before it did, so that a track seen once and missed at the next scan keeps its
+        slots. While a target is new, they carry well under 1% of the mass next to the diffuse
+        "somewhere else in the area" part, so plain resampling keeps a few dozen of them, too
+        few to find the velocity, unobserved at a first detection. When their share
         would give them fewer than ``min(RESERVE_CAP n_b, RESERVE_SHARE n)`` = ``min(3 n_b, 0.4 n)`` slots, the two parts are resampled
         separately (ours): the supported part gets that many slots, the rest the others, each
         slot weighted by its part's mass over its slot count. The weighted set represents the
         same density; once the target is tracked the supported part dominates and this is
         plain systematic resampling.
+
+        With ``filter.velocity_jitter`` = sigma > 0 (ours), the reserved slots are regularised:
+        every copy of a supported particle after its first gets N(0, sigma^2) added to each
+        velocity component (the kernel step of a regularised particle filter, Musso, Oudjane
+        and Le Gland 2001). A new track's supported particles descend from a few parents whose
+        velocities the scans have not pinned down yet; without the kernel their copies share a
+        velocity and only Eq. (1)'s noise spreads them again.
         """
         reserve = min(RESERVE_CAP * self.n_b, int(RESERVE_SHARE * n))
         W_a = float(w[supported].sum())
         W_r = float(w[~supported].sum())
         if reserve == 0 or W_a <= 0.0 or W_r <= 0.0 or W_a * n >= reserve:
             idx = kernel_systematic_indices(w, n, self.rng.uniform())
-            return X[idx], np.full(n, -math.log(n))
+            return X[idx], np.full(n, -math.log(n)), idx
         ia = np.flatnonzero(supported)
         ir = np.flatnonzero(~supported)
         n_r = n - reserve
         idx_a = ia[kernel_systematic_indices(w[ia] / W_a, reserve, self.rng.uniform())]
         idx_r = ir[kernel_systematic_indices(w[ir] / W_r, n_r, self.rng.uniform())]
         log_w = np.concatenate([np.full(reserve, math.log(W_a / reserve)), np.full(n_r, math.log(W_r / n_r))])
-        return X[np.concatenate([idx_a, idx_r])], log_w
+        idx = np.concatenate([idx_a, idx_r])
+        X_new = X[idx]
+        if self.velocity_jitter > 0.0:
+            copies = np.flatnonzero(idx_a[1:] == idx_a[:-1]) + 1  # systematic indices are sorted: copies are adjacent
+            X_new[copies, 3:] += self.velocity_jitter * self.rng.standard_normal((len(copies), 3))
+        return X_new, log_w, idx
 
     def estimate(self) -> Estimate:
         """The latest estimate: predicted after ``predict()``, posterior after ``update()``."""
@@ -517,6 +552,7 @@ class BernoulliFilter:
             lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
             root = V * np.sqrt(np.clip(lam, 0.0, None))
             self._X = mean + self.rng.standard_normal((self.n, 6)) @ root.T
+            self._age = np.full(self.n, NEVER)
             self._log_w = np.full(self.n, -math.log(self.n))
             self._young = None
             self._last = Estimate(self.e, mean.copy(), cov.copy())

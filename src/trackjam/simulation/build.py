@@ -107,7 +107,7 @@ def filter_params(s: Scenario) -> FilterParams:
         clutter_rate=float(s.sensor.clutter_rate),
         visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
         mode=None if f.mode is None else (float(f.mode.radius), float(f.mode.mass)),
-        response=fail_safe(s),
+        response=fail_safe(s), reserve_memory=int(f.reserve_memory), velocity_jitter=float(f.velocity_jitter),
     )
 
 
@@ -246,6 +246,8 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     return [
         ("fusion.existence", s.fusion.existence, "mean"),
         ("filter.mode", s.filter.mode, None),
+        ("filter.reserve_memory", s.filter.reserve_memory, 0),
+        ("filter.velocity_jitter", s.filter.velocity_jitter, 0.0),
         ("control.plan_over", s.control.plan_over, "point"),
         ("fusion.search_reseed", s.fusion.search_reseed, "always"),
         ("comms.loss", s.comms.loss, 0.0),
