@@ -66,6 +66,10 @@ def test_bench_filter_group_prints_and_writes_its_timings(tmp_path):
     row = data["filter"][0]
     _sane(row)
     assert row["repeats"] == 20 and data["machine"]["cores"] >= 1
+    options = next(r for r in data["filter"] if "reserve_memory 1" in r["name"])
+    _sane(options)
+    assert (options["reserve_memory"], options["velocity_jitter"]) == (1, 0.5)
+    assert (row["reserve_memory"], row["velocity_jitter"]) == (0, 0.0)
     for key in ("median_ms", "p95_ms"):
         line = next(ln for ln in r.output.splitlines() if f" {key} " in ln)
         assert cell(row[key]) in line

@@ -28,6 +28,9 @@ def _groups(quick: bool) -> dict:
         "filter": lambda: [{"name": "Bernoulli filter step", **filter.bench_filter_step(repeats=20 if quick else 200)},
                            {"name": "Bernoulli filter step, estimate at the mode (filter.mode 5 m, 0.2)",
                             **filter.bench_filter_step(repeats=20 if quick else 200, mode=(5.0, 0.2))},
+                           {"name": "Bernoulli filter step, resampling of a new track (filter.reserve_memory 1, "
+                                    "filter.velocity_jitter 0.5)",
+                            **filter.bench_filter_step(repeats=20 if quick else 200, resampling=(1, 0.5))},
                            {"name": "LMB filter step, 3 targets", **lmb.bench_lmb_step(repeats=5 if quick else 100)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [*(run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")),
