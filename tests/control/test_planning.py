@@ -112,3 +112,45 @@ def test_a_belief_spread_without_planning_over_the_belief_warns_under_its_key():
     assert lines == ["control.belief_spread: 8 m has no effect under control.plan_over: point "
                      "(it bounds plan_over: belief)"]
     assert scenario_warnings(load_scenario("pursuit")) == []
+
+
+def test_the_belief_steps_take_their_own_n_and_the_point_steps_keep_at_least(monkeypatch):
+    """control.belief_at_least: Eq. (12)'s n on the steps planned over the belief; the others keep
+    control.at_least."""
+    import trackjam.simulation.team as team_module
+
+    calls = []
+    build = team_module.build_problem
+
+    def spy(positions, aim, displacements, ant, low, high, n, constraints, samples=None, weights=None):
+        calls.append((samples is not None, n))
+        return build(positions, aim, displacements, ant, low, high, n, constraints, samples, weights)
+
+    monkeypatch.setattr(team_module, "build_problem", spy)
+    simulate(load_scenario("paper-fig3", COMMON + ["steps=12", "target.occlusions=[[4, 9]]",
+                                                   "control.belief_spread=8", "control.belief_at_least=1"]))
+    assert {wide for wide, _ in calls} == {True, False}
+    assert all(n == (1 if wide else 2) for wide, n in calls)
+
+
+def test_a_belief_at_least_equal_to_at_least_changes_nothing_and_null_is_at_least():
+    items = COMMON + ["steps=10", "target.occlusions=[[4, 7]]", "control.belief_spread=8"]
+    runs = [simulate(load_scenario("paper-fig3", items + extra)).agents
+            for extra in ([], ["control.belief_at_least=2"], ["control.belief_at_least=1"])]
+    assert all(np.array_equal(runs[0][k], runs[1][k]) for k in runs[0])
+    assert not np.array_equal(runs[0]["x"], runs[2]["x"])  # the wide steps planned for any detection
+
+
+def test_a_belief_at_least_is_checked_against_the_team_and_warns_without_the_belief():
+    import pytest
+
+    from trackjam.config.warnings import scenario_warnings
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"control.belief_at_least \(4\) exceeds the number of agents \(3\)"):
+        load_scenario("pursuit", ["control.belief_at_least=4"])
+    with pytest.raises(ConfigError, match="control.belief_at_least"):
+        load_scenario("pursuit", ["control.belief_at_least=0"])
+    lines = scenario_warnings(load_scenario("paper-fig3", ["control.belief_at_least=1"]))
+    assert lines == ["control.belief_at_least: 1 has no effect under control.plan_over: point "
+                     "(it is the n of the steps planned over the belief)"]

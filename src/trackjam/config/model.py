@@ -530,6 +530,12 @@ class Control(_Model):
         "on a step at which some prediction it heard has a position spread sqrt(trace(C_pos) / 3) above this [m], "
         f"and evaluates it at x_bar otherwise, in (0, {MAX_LENGTH:g}]; null: over the belief on every step",
     )
+    belief_at_least: Integer(1, MAX_AGENTS) | None = Field(
+        None,
+        description="`plan_over: belief`: n of Xi^N_n on the steps planned over the belief (ours), in [1, N]; with "
+        "`belief_spread` those are the steps at which the belief is too wide to report, and 1 makes a searching team "
+        "maximise the chance that any agent finds the target; null: `at_least`",
+    )
     fallback: Literal["hover", "search"] = Field(
         "hover",
         description="when no agent believes in the target: `hover` (docs/model.md: hover, keep the last aim, highest "
@@ -671,6 +677,8 @@ class Scenario(_Model):
         n = len(self.agents.initial)
         if self.control.at_least > n:
             raise ValueError(f"control.at_least ({self.control.at_least}) exceeds the number of agents ({n})")
+        if self.control.belief_at_least is not None and self.control.belief_at_least > n:
+            raise ValueError(f"control.belief_at_least ({self.control.belief_at_least}) exceeds the number of agents ({n})")
         lo, hi = self.area.low, self.area.high
         for j, u in enumerate(self.agents.initial):
             if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):

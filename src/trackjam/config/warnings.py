@@ -28,6 +28,9 @@ def scenario_warnings(s: Scenario) -> list[str]:
     if late:
         out.append(f"{', '.join(late)}: start after the last step ({s.steps}); the agent never fails")
     c = s.control
+    if c.belief_at_least is not None and c.plan_over != "belief":
+        out.append(f"control.belief_at_least: {c.belief_at_least} has no effect under control.plan_over: {c.plan_over} "
+                   "(it is the n of the steps planned over the belief)")
     if c.belief_spread is not None and c.plan_over != "belief":
         out.append(f"control.belief_spread: {c.belief_spread:g} m has no effect under control.plan_over: {c.plan_over} "
                    "(it bounds plan_over: belief)")

@@ -217,6 +217,7 @@ def build(s: Scenario) -> Components:
             time_limit_s=c.time_limit_s, node_limit=int(c.node_limit),
             belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
             belief_spread=None if c.belief_spread is None else float(c.belief_spread),
+            belief_at_least=None if c.belief_at_least is None else int(c.belief_at_least),
         ),
         team=TeamSettings(
             existence_rule=s.fusion.existence, feedback=s.fusion.feedback, share=s.fusion.share,
@@ -249,6 +250,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
         ("filter.reserve_memory", s.filter.reserve_memory, 0),
         ("filter.velocity_jitter", s.filter.velocity_jitter, 0.0),
         ("control.plan_over", s.control.plan_over, "point"),
+        ("control.belief_at_least", s.control.belief_at_least, None),
         ("fusion.search_reseed", s.fusion.search_reseed, "always"),
         ("comms.loss", s.comms.loss, 0.0),
         ("comms.delay_steps", s.comms.delay_steps, 0),

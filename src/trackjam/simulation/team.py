@@ -211,12 +211,15 @@ class Team:
             aim = np.frombuffer(key[2])
             positions = np.array([m.position for m in heard] + [self.known[j0][k].position for k in guards])
             samples = weights = None
+            n_detect = plan.at_least
             if plan.belief_samples and wide_belief([m.estimate for m in heard], plan.belief_spread):
                 # tracking: the believers' predicted densities; searching: wherever the team's can be
                 sampled = [m.belief for m in heard if searching or m.estimate.existence > CONFIRM]
                 samples, weights = pooled_belief(sampled)
+                if plan.belief_at_least is not None:
+                    n_detect = plan.belief_at_least
             problem = build_problem(positions, aim, displacements, ant, low, high,
-                                    min(plan.at_least, len(rows)), plan.constraints, samples, weights)
+                                    min(n_detect, len(rows)), plan.constraints, samples, weights)
             if guards:
                 problem = problem.guarded(len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
