@@ -123,8 +123,8 @@ def test_default_filter_against_the_high_particle_reference_under_weak_evidence(
     # measured: -0.034 ± 0.012 in existence and +0.72 ± 0.08 m in position (README, "Our
     # decisions"); the filter before the two-scan proposal (proposal share 0.5, reserve n / 5)
     # was -0.067 and +1.79 m in the earlier, biased comparison
-    assert abs(ge) < 0.04
-    assert gp < 0.8
+    assert abs(ge) < 0.05
+    assert gp < 1.0  # a margin for other machines' rounding, which moves particles (the old filter: 1.79)
 
 
 def test_the_resampling_options_narrow_the_gap():
@@ -134,5 +134,5 @@ def test_the_resampling_options_narrow_the_gap():
     ge, se_e, gp, se_p, n = summary("options")
     ge0, _, gp0, _, _ = summary("default")
     print(f"with the options: existence {ge:+.4f} ± {se_e:.4f}, position {gp:+.3f} ± {se_p:.3f} m ({n} steps)")
-    assert abs(ge) < 0.02 and abs(ge) < abs(ge0) - 0.01
-    assert gp < 0.4 and gp < gp0 - 0.15
+    assert abs(ge) < 0.025 and abs(ge) < abs(ge0) - 0.01
+    assert gp < 0.5 and gp < gp0 - 0.2
