@@ -334,7 +334,7 @@ class BernoulliFilter:
         self.log_evidence = 0.0  # log sum_i w_i L_i of the last update: its evidence were the target visible
         self.e = float(np.clip(existence, 0.0, 1.0))
         self._X = self.b.draw(self.rng, self.n)
-        self._age = np.full(self.n, NEVER)  # per row of _X: scans since one supported its line (0: the last)
+        self._age = np.full(self.n, NEVER)  # per row of _X, kept with filter.reserve_memory: scans since one supported its line
         self._log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
         self._young: Young | None = None
         self._e_pred: float | None = None  # set by predict(), consumed by update()
@@ -402,18 +402,20 @@ class BernoulliFilter:
         two-scan proposal when both its scan and the current one hold measurements; with
         ``filter.reserve_memory``, also which of them their scan at t-1 supported."""
         young = self._young
-        memory = self.reserve_memory > 0
         if self.two_scan and len(young.scan.Z) and len(scan.Z):
             G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
             G_next = Gaussians.of_scan(scan.Z, scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
-            X0, log_w = redraw_young(
-                self.rng, self.b, G_prev, G_next, self.n_young, self.proposal_fraction, self.accel_var,
-                lambda X: young.scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c),
-            )
+            log_L_prev: list[np.ndarray] = []  # L_{t-1} of the redrawn particles, as the proposal weighed them
+
+            def weigh(X: np.ndarray) -> np.ndarray:
+                log_L_prev.append(young.scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c))
+                return log_L_prev[-1]
+
+            X0, log_w = redraw_young(self.rng, self.b, G_prev, G_next, self.n_young, self.proposal_fraction,
+                                     self.accel_var, weigh)
             if np.any(np.isfinite(log_w)):
-                seen = young.scan.log_factors(X0, self.ant, self.noise_std, self.log_lambda_c) > 0.0 if memory else None
                 self._move(X0)
-                return X0, log_w, seen
+                return X0, log_w, log_L_prev[-1] > 0.0 if self.reserve_memory > 0 else None
         X = young.X.copy()
         self._move(X)
         return X, young.log_w, young.supported
@@ -469,14 +471,18 @@ class BernoulliFilter:
         W_pool = float(w[:k].sum())
         if W_pool > 0.0:
             n_pool = max(self.n - self.n_young, self.n // 2) if k < len(X) else self.n
-            age = np.full(k, NEVER)  # the pool: the survivors' rows first, then the young component's
-            n_s = len(self._X)
-            age[:n_s] = np.minimum(self._age, NEVER - 1) + 1
-            if young_seen is not None:  # the young component: supported by its scan at t-1
-                age[n_s:n_s + len(young_seen)][young_seen] = 1
-            age[log_L[:k] > 0.0] = 0
-            self._X, self._log_w, parents = self._resample(X[:k], w[:k] / W_pool, age <= self.reserve_memory, n_pool)
-            self._age = age[parents]
+            supported = log_L[:k] > 0.0
+            if self.reserve_memory > 0:  # scans since a scan supported each row's line
+                age = np.full(k, NEVER)  # the pool: the survivors' rows first, then the young component's
+                n_s = len(self._X)
+                age[:n_s] = np.minimum(self._age, NEVER - 1) + 1
+                if young_seen is not None:  # the young component: supported by its scan at t-1
+                    age[n_s:n_s + len(young_seen)][young_seen] = 1
+                age[supported] = 0
+                supported = age <= self.reserve_memory
+            self._X, self._log_w, parents = self._resample(X[:k], w[:k] / W_pool, supported, n_pool)
+            if self.reserve_memory > 0:
+                self._age = age[parents]
         self._young = None
         if k < len(X):
             log_mass = float(kernel_logsumexp(log_post[k:]))
