@@ -369,3 +369,84 @@ def test_an_out_killed_between_its_experiment_json_and_its_trials_folder_resumes
     monkeypatch.setattr(Path, "mkdir", real_mkdir)
     assert (out / "experiment.json").is_file() and not (out / "trials").exists()
     assert engine.run_experiment("constraints", workers=1, out=out, **SWEEP).ran == 4
+
+
+def _snapshot(folder: Path) -> dict:
+    """Every entry under ``folder`` (links not followed): its kind, bytes and modification time."""
+    return {p.relative_to(folder): (p.is_symlink(), p.read_bytes() if p.is_file() and not p.is_symlink() else None,
+                                    p.lstat().st_mtime_ns) for p in folder.rglob("*")}
+
+
+@pytest.mark.parametrize("target", ["other", "dangling"])
+def test_a_trials_folder_that_is_a_link_is_refused_and_nothing_changes(done, tmp_path, target):
+    # OUT/trials linked to another experiment's trials/: the run read that experiment's trials as
+    # "run with other random streams" and replaced all 4 of them with its own
+    other = tmp_path / "other"
+    shutil.copytree(done, other)
+    out = tmp_path / "e"
+    run_experiment("constraints", workers=1, out=out, **{**SWEEP, "seed": 8})
+    shutil.rmtree(out / "trials")
+    (out / "trials").symlink_to(other / "trials" if target == "other" else tmp_path / "nowhere")
+    before = _snapshot(out), _snapshot(other)
+    with pytest.raises(ConfigError, match=rf"^--out {out}: trials is a symbolic link \(to .*\), and the trials would "
+                                          r"be written and removed through it, in another folder; make it a plain "
+                                          "folder or choose another --out$"):
+        run_experiment("constraints", workers=1, out=out, **{**SWEEP, "seed": 8})
+    assert (_snapshot(out), _snapshot(other)) == before
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_summarising_a_folder_whose_trials_are_a_link_is_refused(done, tmp_path):
+    # reading the trials back removes stale temporary files: another sweep's, through the link
+    from trackjam.experiments.engine import summarise_folder
+
+    out = tmp_path / "e"
+    shutil.copytree(done, out, ignore=shutil.ignore_patterns("trials"))
+    (out / "trials").symlink_to(done / "trials")
+    leftover = done / "trials" / f".{trial_filename(1, 0)}.abc.tmp.parquet"  # a sweep writing there
+    leftover.write_bytes(b"half")
+    try:
+        with pytest.raises(ConfigError, match=rf"^{out}: trials is a symbolic link"):
+            summarise_folder(out)
+        assert leftover.read_bytes() == b"half"
+    finally:
+        leftover.unlink()
+
+
+def test_the_cli_refuses_a_linked_trials_folder_in_one_line(done, tmp_path):
+    import json
+
+    from trackjam.experiments.definitions import get_experiment
+    from trackjam.experiments.engine import _parameters, simulate_trial
+
+    out = tmp_path / "e"
+    out.mkdir()
+    params = _parameters(get_experiment("constraints"), 1, 2, 0, [], simulate_trial)
+    (out / "experiment.json").write_text(json.dumps(params))
+    (out / "trials").symlink_to(done / "trials")
+    before = _snapshot(done)
+    proc = subprocess.run(
+        [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps", "2",
+         "--workers", "1", "--out", str(out)], capture_output=True, text=True, env=ENV, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.splitlines() == [
+        f"trackjam: error: --out {out}: trials is a symbolic link (to {done / 'trials'}), and the trials would be "
+        "written and removed through it, in another folder; make it a plain folder or choose another --out"]
+    assert _snapshot(done) == before and sorted(p.name for p in out.iterdir()) == ["experiment.json", "trials"]
+
+
+@pytest.mark.parametrize("name", ["summary.csv", "timing.csv", "paired.csv", "fig5.png"])
+def test_a_result_at_a_linked_name_replaces_the_link_not_its_target(done, tmp_path, name):
+    # results are renamed into place (trackjam.files.atomic_write): a link there is replaced by
+    # the result, and the file it pointed to, another experiment's, stays as it was
+    other = tmp_path / "other"
+    shutil.copytree(done, other)
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    (other / name).write_bytes(b"the other experiment's")
+    (out / name).unlink()
+    (out / name).symlink_to(other / name)
+    run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert (other / name).read_bytes() == b"the other experiment's"
+    assert (out / name).is_file() and not (out / name).is_symlink()
+    if name.endswith(".csv"):
+        assert (out / name).read_bytes() == (done / name).read_bytes()

@@ -186,14 +186,28 @@ def _check_out(out: Path, params: dict, figure: str) -> None:
             parts = _names([f"{shortened(k, 40)}: {shortened(repr(old.get(k)), 60)} there, "
                             f"{shortened(repr(params.get(k)), 60)} now" for k in diff], shown=len(params))
             raise ConfigError(f"{out} holds a different experiment ({parts}); choose another --out")
-        if (out / "trials").exists() and not (out / "trials").is_dir():
-            raise ConfigError(f"--out {out}: trials is a file, not a folder")
+        _check_trials_folder(out, f"--out {out}")
     elif out.is_dir() and any(out.iterdir()):
         raise ConfigError(f"{out} is not empty and holds no experiment.json; choose another --out")
     check_writable(existing_folder(out, f"--out {out}"), f"--out {out}")
     for written in ("summary.csv", "timing.csv", "paired.csv", figure):
         if what := taken_by(out / written):
             raise ConfigError(f"--out {out}: {written} is {what}, not a file; move it away or choose another --out")
+
+
+def _check_trials_folder(out: Path, where: str) -> None:
+    """Refuse, in one line beginning with ``where``, an OUT/trials that is a file or a symbolic
+    link. Trials are written, and stale temporary files removed, inside it: through a link (to
+    another experiment's trials/, say) a run replaced that experiment's trial files. A result at
+    a linked name in OUT (summary.csv, the figure) is not written through:
+    :func:`trackjam.files.atomic_write` renames over the link and leaves its target alone."""
+    trials = out / "trials"
+    if trials.is_symlink():
+        raise ConfigError(f"{where}: trials is a symbolic link (to {shortened(os.readlink(trials), 120)}), and "
+                          "the trials would be written and removed through it, in another folder; "
+                          "make it a plain folder or choose another --out")
+    if trials.exists() and not trials.is_dir():
+        raise ConfigError(f"{where}: trials is a file, not a folder")
 
 
 def _claim(out: Path, params: dict) -> None:
@@ -508,6 +522,7 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     wrong = [k for k, kind in kinds.items() if not isinstance(params.get(k), kind) or isinstance(params.get(k), bool)]
     if wrong:
         raise ConfigError(f"{meta}: {', '.join(wrong)} missing or mistyped; not an experiment's parameters")
+    _check_trials_folder(out, str(out))  # reading it back removes stale temporary files there
     if not (out / "trials").is_dir():
         raise ConfigError(f"{out}: no trials/ folder here, nothing to summarise")
     experiment = get_experiment(params["experiment"], params.get("grid"))
