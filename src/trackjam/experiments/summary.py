@@ -45,9 +45,15 @@ TIMING: tuple[Metric, ...] = (
     ("solve_s", "solve_s_mean", "wall time of the control solver per step [s]"),
 )
 CONFIG_COLUMNS = ("config", "label", "n_controls", "opening_angle_deg", "constraints", "solver")
-# figures a trial may lack (the swarm's time to down, when no target was downed): their mean and
-# interval are over the trials that have them
-WHERE_DEFINED = frozenset({"downed_step_mean"})
+# figures a trial leaves NaN where they do not apply: the track-quality shares of a trial without
+# a detectable step (of a swarm cell without a detectable target, or one downed before it was
+# held) and the swarm's time to down, when no target was downed. Each gets a column ``STEM_trials``
+# in summary.csv and paired.csv: the number of trials its mean, or its paired difference, is over
+WHERE_DEFINED = frozenset({
+    "held_share", "false_track_share", "missed_share", "ceiling_share",  # QUALITY
+    "held50_share", "held_airborne_share", "ceiling50_share",  # the swarm's (experiments/swarm.py)
+    "downed_step_mean",
+})
 RECORD_KEYS = tuple(k for _, k, _ in METRICS + TIMING)
 
 
@@ -183,6 +189,11 @@ def count_ci95(values: Iterable[float]) -> tuple[int, int, float, float]:
     return k, n, float(ci.low), float(ci.high)
 
 
+def _defined(v: Any) -> bool:
+    """A trial's figure that applies: neither None nor NaN."""
+    return v is not None and not math.isnan(v)
+
+
 def table_rows(
     records: list[Mapping[str, Any]],
     configurations: list[Mapping[str, Any]],
@@ -190,10 +201,13 @@ def table_rows(
     counts: tuple[Count, ...] = (),
 ) -> list[dict[str, Any]]:
     """One row per configuration (in order): its parameters (:data:`CONFIG_COLUMNS`, then any
-    other key of the configuration), trials, mean/ci95 of each metric over its trials (records
-    are taken in trial order, whatever order they finished; a metric of :data:`WHERE_DEFINED`
-    over the trials that have it), and for each count ``STEM`` (k), ``STEM_of`` (n),
-    ``STEM_lo`` and ``STEM_hi`` (:func:`count_ci95`)."""
+    other key of the configuration), trials, mean/ci95 of each metric over the trials where it
+    is defined (not NaN; records are taken in trial order, whatever order they finished), with,
+    for a metric of :data:`WHERE_DEFINED`, ``STEM_trials``: how many those are; and for each
+    count ``STEM`` (k), ``STEM_of`` (n), ``STEM_lo`` and ``STEM_hi`` (:func:`count_ci95`).
+    A NaN is left out as :func:`paired_rows` leaves it out: a share of a trial without a
+    detectable step made the whole configuration's mean NaN (an empty cell), while its paired
+    differences were over the other trials."""
     rows = []
     for conf in configurations:
         mine = sorted((r for r in records if int(r["config"]) == conf["config"]), key=lambda r: int(r["trial"]))
@@ -201,10 +215,10 @@ def table_rows(
         row |= {k: v for k, v in conf.items() if k not in row}
         row["trials"] = len(mine)
         for stem, key, _ in metrics:
-            values = [r[key] for r in mine]
-            if key in WHERE_DEFINED:
-                values = [v for v in values if v is not None and not math.isnan(v)]
+            values = [r[key] for r in mine if _defined(r[key])]
             row[f"{stem}_mean"], row[f"{stem}_ci95"] = mean_ci95(values)
+            if key in WHERE_DEFINED:
+                row[f"{stem}_trials"] = len(values)
         for stem, key, _ in counts:
             row[stem], row[f"{stem}_of"], row[f"{stem}_lo"], row[f"{stem}_hi"] = count_ci95(r[key] for r in mine)
         rows.append(row)
@@ -216,16 +230,21 @@ Pair = tuple[int, int, str]  # (configuration a, configuration b, what b - a com
 
 def paired_rows(records: list[Mapping[str, Any]], pairs: Iterable[Pair], metrics: tuple[Metric, ...]) -> list[dict[str, Any]]:
     """One row per pair (a, b, label): ``trials`` both ran, and for each metric ``STEM_diff``, the
-    mean over those trials of b's value minus a's (trials where either lacks it left out), and
-    ``STEM_ci95``, the half-width of its t-based 95 % interval: a paired comparison."""
+    mean over those trials of b's value minus a's (trials where either lacks it, NaN, left out),
+    ``STEM_ci95``, the half-width of its t-based 95 % interval: a paired comparison; and for a
+    metric of :data:`WHERE_DEFINED`, ``STEM_trials``: the trials both define, the differences'
+    number (as :func:`table_rows` states each configuration's)."""
     by = {(int(r["config"]), int(r["trial"])): r for r in records}
     rows = []
     for a, b, label in pairs:
         trials = sorted(k for c, k in by if c == a and (b, k) in by)
         row: dict[str, Any] = {"a": a, "b": b, "label": label, "trials": len(trials)}
         for stem, key, _ in metrics:
-            d = [float(by[(b, k)][key]) - float(by[(a, k)][key]) for k in trials]
-            row[f"{stem}_diff"], row[f"{stem}_ci95"] = mean_ci95(v for v in d if not math.isnan(v))
+            d = [float(by[(b, k)][key]) - float(by[(a, k)][key]) for k in trials
+                 if _defined(by[(a, k)][key]) and _defined(by[(b, k)][key])]
+            row[f"{stem}_diff"], row[f"{stem}_ci95"] = mean_ci95(d)
+            if key in WHERE_DEFINED:
+                row[f"{stem}_trials"] = len(d)
         rows.append(row)
     return rows
 
