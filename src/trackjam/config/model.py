@@ -368,6 +368,9 @@ class Visibility(_Model):
 
     hide: Prob = Field(description="probability per step that a visible target becomes hidden, in [0, 1]")
     reappear: Prob = Field(description="probability per step that a hidden target becomes visible again, in [0, 1]")
+    per_particle: StrictBool = Field(
+        False, description="each particle carries its own P(visible), so a place the scans keep missing is believed "
+                           "hidden there rather than emptied (ours); false: one P(visible) for the whole filter")
 
 
 class Mode(_Model):

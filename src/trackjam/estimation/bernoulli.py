@@ -133,6 +133,7 @@ class Young:
     mass: float
     scan: Scan
     supported: np.ndarray | None = None  # per particle: L_{t-1} > 1 (kept for filter.reserve_memory)
+    nu: np.ndarray | None = None  # per particle: P(visible) after the update at t-1 (filter.visibility.per_particle)
 
 
 @dataclass(frozen=True)
@@ -237,6 +238,47 @@ def posterior_visibility(nu: float, log_V: float) -> float:
     return float(expit(math.log(nu) - math.log1p(-nu) + log_V))
 
 
+def mix_visibility_per_particle(log_w: np.ndarray, log_L: np.ndarray,
+                                nu: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The hidden-target mode with P(visible) carried per particle (ours,
+    ``filter.visibility.per_particle``): the state is (x, visible) and the particles hold
+    ``nu_i`` = P(visible | x_i). Returns the update factors ``log L'_i`` with
+    ``L'_i = nu_i L_i + (1 - nu_i)``, each particle's posterior ``nu_i L_i / L'_i``, and the
+    log-evidence ``log V`` with ``V = sum_i w_i nu_i L_i / nu_bar`` (``nu_bar = sum_i w_i nu_i``),
+    so that ``sum_i w_i L'_i = nu_bar V + 1 - nu_bar`` as with one P(visible) for the filter.
+    With every ``nu_i`` equal this is :func:`mix_visibility` and :func:`posterior_visibility`."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_nu = np.log(nu)
+        log_vis = log_nu + log_L
+        log_Lm = np.logaddexp(log_vis, np.log1p(-nu))
+        nu_post = np.where(log_Lm > -np.inf, np.exp(log_vis - log_Lm), nu)
+    nu_post = np.clip(np.nan_to_num(nu_post, nan=0.0), 0.0, 1.0)
+    log_nu_bar = float(kernel_logsumexp(log_w + log_nu))
+    if log_nu_bar == -np.inf:
+        log_V = float(kernel_logsumexp(log_w + log_L))
+    else:
+        log_V = float(kernel_logsumexp(log_w + log_vis)) - log_nu_bar
+    return log_Lm, nu_post, log_V
+
+
+def shift_visibility(nu: np.ndarray, w: np.ndarray, target: float) -> np.ndarray:
+    """Per-particle P(visible) moved by one shift of their log-odds so that their weighted
+    mean is ``target`` (fusion feedback of the team's P(visible) under
+    ``filter.visibility.per_particle``); 0 and 1 give every particle that value."""
+    if target <= 0.0 or target >= 1.0:
+        return np.full(len(nu), float(np.clip(target, 0.0, 1.0)))
+    with np.errstate(divide="ignore"):
+        logit = np.log(nu) - np.log1p(-nu)
+    lo, hi = -800.0, 800.0
+    for _ in range(60):  # bisection on the shift: the mean is increasing in it
+        c = 0.5 * (lo + hi)
+        if float(w @ expit(logit + c)) < target:
+            lo = c
+        else:
+            hi = c
+    return expit(logit + 0.5 * (lo + hi))
+
+
 def bernoulli_update(e_pred, X, log_w, Z, u, aim, level_w, ant: AntennaModel, noise_std, log_lambda_c):
     """The update of Section V-A on a weighted particle set (``log_w`` normalised).
 
@@ -275,6 +317,7 @@ class FilterParams:
     response: FailSafe | None = None  # filter.response: the fail-safe it expects of a jammed target; None: Eq. (1) always
     reserve_memory: int = 0  # filter.reserve_memory: scans before the current one whose support keeps a reserved slot
     velocity_jitter: float = 0.0  # filter.velocity_jitter [m/s]: the reserve's extra copies get N(0, this^2) per velocity axis; 0: plain copies
+    visibility_per_particle: bool = False  # filter.visibility.per_particle: each particle carries its own P(visible)
 
 
 class BernoulliFilter:
@@ -331,6 +374,11 @@ class BernoulliFilter:
             raise ValueError(f"mode must be (radius > 0, least weight in (0, 1]), got {self.mode}")
         self.nu = 1.0  # P(visible | the target exists), after the last update
         self.nu_pred = 1.0  # the same predicted to the current step
+        # filter.visibility.per_particle (ours): P(visible) per row of _X, after the last update,
+        # and (set by predict) predicted to the current step
+        self.per_particle = bool(f.visibility_per_particle) and self.visibility is not None
+        self._nu = np.ones(self.n) if self.per_particle else None
+        self._nu_pred: np.ndarray | None = None
         self.log_evidence = 0.0  # log sum_i w_i L_i of the last update: its evidence were the target visible
         self.e = float(np.clip(existence, 0.0, 1.0))
         self._X = self.b.draw(self.rng, self.n)
@@ -356,6 +404,11 @@ class BernoulliFilter:
         kernel_cv_predict(X, self.rng.standard_normal((len(X), 3)), DT, math.sqrt(self.accel_var))
         if self.walls == "reflect":
             kernel_reflect(X, self.b.low, self.b.high)
+
+    def _chain(self, nu):
+        """P(visible) predicted one step by the hidden-target mode's two-state chain."""
+        hide, reappear = self.visibility
+        return (1.0 - hide) * nu + reappear * (1.0 - nu)
 
     @property
     def _young_mass(self) -> float:
@@ -387,6 +440,11 @@ class BernoulliFilter:
         if self.visibility is not None:
             hide, reappear = self.visibility
             self.nu_pred = (1.0 - hide) * self.nu + reappear * (1.0 - self.nu)
+            if self.per_particle:  # the chain per particle; a new target is born visible
+                self._nu_pred = self._chain(self._nu)
+                nu_s = float(np.exp(self._log_w) @ self._nu_pred)
+                nu_y = float(np.exp(self._young.log_w) @ self._chain(self._young.nu)) if self._young is not None else 0.0
+                self.nu_pred = self._w_surv * ((1.0 - M) * nu_s + M * nu_y) + self._w_birth * (1.0 - hide)
         self._m_birth = None
         if self.n_mb:
             self._m_birth = draw_measurement_birth(self.rng, self.b, self._prev_G, self.n_mb, self.v_m)
@@ -433,12 +491,17 @@ class BernoulliFilter:
         G_now = Gaussians.of_scan(Z, u, self.noise_std) if (self.importance and len(Z)) else None
         M = self._young_mass
         young_seen = None
+        nus = [self._nu_pred] if self.per_particle else None  # filter.visibility.per_particle: P(visible) per block
         with np.errstate(divide="ignore"):
             log_s, log_b = np.log(self._w_surv), np.log(self._w_birth)
             blocks = [(self._X, log_s + np.log1p(-M) + self._log_w)]
             if self._young is not None:
                 XY, log_wY, young_seen = self._young_at_t(scan)
                 blocks.append((XY, log_s + np.log(M) + log_wY))
+                if nus is not None:  # drawn again, the young particles take their component's mean
+                    y = self._young
+                    nus.append(self._chain(y.nu) if XY.shape == y.X.shape and log_wY is y.log_w
+                               else np.full(len(XY), self._chain(float(np.exp(y.log_w) @ y.nu))))
             if self.n_mb:
                 blocks.append((self._m_birth[0], log_b + np.log(self.birth_mix) + self._m_birth[1]))
             n_u = self.n_b - self.n_mb
@@ -454,7 +517,11 @@ class BernoulliFilter:
         log_V = float(kernel_logsumexp(log_w + log_L))
         self.log_evidence = log_V
         log_Lm = log_L
-        if self.visibility is not None:
+        nu_post = None
+        if self.per_particle:
+            nu_all = np.concatenate(nus + [np.full(len(X) - sum(len(v) for v in nus), 1.0 - self.visibility[0])])
+            log_Lm, nu_post, self.log_evidence = mix_visibility_per_particle(log_w, log_L, nu_all)
+        elif self.visibility is not None:
             log_Lm = mix_visibility(log_L, self.nu_pred)
             self.nu = posterior_visibility(self.nu_pred, log_V)
         log_joint = log_w + log_Lm
@@ -463,6 +530,8 @@ class BernoulliFilter:
         log_post = log_w if log_A == -np.inf else log_joint - log_A
         w = np.exp(log_post)
         w /= w.sum()
+        if nu_post is not None:
+            self.nu = float(np.clip(w @ nu_post, 0.0, 1.0))
         at_mode = None if self.mode is None else mode_moments(X, w, *self.mode)
         mean, cov = at_mode or weighted_moments(X, w)
         # the uniform-born part becomes the young component, the rest is resampled to the
@@ -483,12 +552,15 @@ class BernoulliFilter:
             self._X, self._log_w, parents = self._resample(X[:k], w[:k] / W_pool, supported, n_pool)
             if self.reserve_memory > 0:
                 self._age = age[parents]
+            if nu_post is not None:
+                self._nu = nu_post[:k][parents]
         self._young = None
         if k < len(X):
             log_mass = float(kernel_logsumexp(log_post[k:]))
             if log_mass > -np.inf:
                 self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scan,
-                                    log_L[k:] > 0.0 if self.reserve_memory > 0 else None)
+                                    log_L[k:] > 0.0 if self.reserve_memory > 0 else None,
+                                    None if nu_post is None else nu_post[k:].copy())
         self.e = e
         self._e_pred = None
         self._m_birth = None
@@ -552,6 +624,8 @@ class BernoulliFilter:
         self.e = float(np.clip(existence, 0.0, 1.0))
         if visible is not None and self.visibility is not None:
             self.nu = float(np.clip(visible, 0.0, 1.0))
+            if self.per_particle and mean is None:  # keep the particles' differences, at the team's mean
+                self._nu = shift_visibility(self._nu, np.exp(self._log_w), self.nu)
         if mean is not None and cov is not None:
             mean = np.asarray(mean, dtype=float)
             cov = np.asarray(cov, dtype=float)
@@ -560,6 +634,8 @@ class BernoulliFilter:
             self._X = mean + self.rng.standard_normal((self.n, 6)) @ root.T
             self._age = np.full(self.n, NEVER)
             self._log_w = np.full(self.n, -math.log(self.n))
+            if self.per_particle:
+                self._nu = np.full(self.n, self.nu)
             self._young = None
             self._last = Estimate(self.e, mean.copy(), cov.copy())
             if self.watch.downed:  # the redrawn particles take the hedge's branches again
