@@ -488,3 +488,45 @@ def test_a_problem_between_keys_is_not_blamed_on_a_set_of_another_key_of_a_secti
     message = _refused("paper-fig3", f_items[:1] + ["agents.n_azimuth=4"] + f_items[1:])
     assert message.startswith("--set agents.initial=") or message.startswith("--set control.at_least=3")
     assert "agents.n_azimuth" not in message
+
+
+def _float_keys(model, prefix=""):
+    """Every dotted key of ``model`` and its sections that holds a float or a list or tuple of them."""
+    import typing
+
+    from pydantic import BaseModel
+
+    for name, field in model.model_fields.items():
+        kinds = typing.get_args(field.annotation) or (field.annotation,)
+        kinds = [typing.get_args(k)[0] if typing.get_origin(k) is typing.Annotated else k for k in kinds]
+        for kind in kinds:
+            if isinstance(kind, type) and issubclass(kind, BaseModel):
+                yield from _float_keys(kind, f"{prefix}{name}.")
+        if float in kinds:
+            yield f"{prefix}{name}"
+
+
+FLOAT_KEYS = sorted(set(_float_keys(trackjam.config.Scenario)))
+
+
+def test_the_float_keys_are_found():
+    assert {"antenna.height", "antenna.opening_angle_deg", "filter.cue.position_std", "control.time_limit_s",
+            "metrics.gate", "filter.accel_var"} <= set(FLOAT_KEYS)
+
+
+@pytest.mark.parametrize("value", ["1e308", "-1e308", "1.7976931348623157e308"])
+@pytest.mark.parametrize("key", FLOAT_KEYS)
+def test_a_float_key_past_any_physics_is_refused_naming_it(key, value):
+    # every float key has physical bounds (config/limits.py): a hand-edited 1e308 is one line
+    # naming the key, never a run whose arithmetic overflows (an unbounded Real() would pass it)
+    base = "swarm-3" if key.startswith("targets") else "pursuit"
+    section = key.rsplit(".", 1)[0]
+    needs = {"filter.cue": "filter.cue={existence: 1, position_std: 1, velocity_std: 1}",
+             "filter.visibility": "filter.visibility={hide: 0.1, reappear: 0.5}",
+             "filter.mode": "filter.mode={radius: 1, mass: 0.5}",
+             "target.stochastic": "target.stochastic={birth_prob: 0.5, survival_prob: 0.5}",
+             "target.response": "target.response={threshold_db: -40}",
+             "filter.response": "filter.response={action: land}"}
+    overrides = [needs[section]] if section in needs else []
+    message = _refused(base, overrides + [f"{key}={value}"])
+    assert f": {key}: " in message, message

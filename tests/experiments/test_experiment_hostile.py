@@ -130,7 +130,8 @@ def test_a_trial_that_cannot_be_written_is_one_line_and_keeps_the_others(done, t
 
 
 @pytest.mark.parametrize("value", [pa.array(["abc"]), pa.array([None], type=pa.float64()), pa.array([True]),
-                                   pa.array([float("inf")]), pa.array([-float("inf")])])
+                                   pa.array([float("inf")]), pa.array([-float("inf")]), pa.array([1e308]),
+                                   pa.array([-1.7976931348623157e308]), pa.array([1.0000001e100])])
 def test_a_trial_whose_figure_is_mistyped_is_run_again_not_a_traceback(done, tmp_path, value):
     # an infinite figure (no trial yields one) was read back: inf in summary.csv, numpy's and
     # matplotlib's RuntimeWarnings on stderr
@@ -142,6 +143,42 @@ def test_a_trial_whose_figure_is_mistyped_is_run_again_not_a_traceback(done, tmp
     result = run_experiment("constraints", workers=1, out=out, **SWEEP)
     assert result.ran == 1 and any("damaged" in n and path.name in n for n in result.notes)
     assert (out / "summary.csv").read_bytes() == (done / "summary.csv").read_bytes()
+
+
+def _edit_figure(path: Path, key: str, value: float) -> None:
+    table = pq.read_table(path)
+    pq.write_table(table.set_column(table.column_names.index(key), key, pa.array([value])), path)
+
+
+def test_hand_edited_huge_figures_are_run_again_without_an_overflow(done, tmp_path):
+    # 1e308 is finite, so it was read back: the interval's squares and the pairs' differences
+    # overflowed (numpy's RuntimeWarnings), and summary.csv and paired.csv held inf
+    import warnings
+
+    from trackjam.experiments.engine import summarise_folder
+    from trackjam.experiments.summary import TRIAL_MAX_FIGURE, read_table
+
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    _edit_figure(out / "trials" / trial_filename(1, 0), "ospa_mean", 1e308)
+    _edit_figure(out / "trials" / trial_filename(2, 1), "held_share", -1e308)
+    _edit_figure(out / "trials" / trial_filename(2, 0), "transmit_w_mean", TRIAL_MAX_FIGURE)  # the bound: kept
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        summarised = summarise_folder(out)  # no simulation: the huge ones are passed over, in one line
+        assert [n for n in summarised.notes if "damaged" in n] == [
+            f"2 damaged trial file(s) in {out / 'trials'} will be run again: "
+            f"{trial_filename(1, 0)}, {trial_filename(2, 1)}"]
+        for name in ("summary.csv", "paired.csv"):
+            cells = [v for row in read_table(out / name) for v in row.values()]
+            assert not any("inf" in v for v in cells), name
+        result = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert result.ran == 2
+    _edit_figure(out / "trials" / trial_filename(2, 0), "transmit_w_mean",
+                 pq.read_table(done / "trials" / trial_filename(2, 0))["transmit_w_mean"][0].as_py())
+    assert run_experiment("constraints", workers=1, out=out, **SWEEP).ran == 0
+    for name in ("summary.csv", "paired.csv"):
+        assert (out / name).read_bytes() == (done / name).read_bytes(), name
 
 
 @pytest.mark.parametrize(
@@ -450,3 +487,17 @@ def test_a_result_at_a_linked_name_replaces_the_link_not_its_target(done, tmp_pa
     assert (out / name).is_file() and not (out / name).is_symlink()
     if name.endswith(".csv"):
         assert (out / name).read_bytes() == (done / name).read_bytes()
+
+
+@pytest.mark.parametrize("value", [float("inf"), 1e308])
+def test_a_trial_function_returning_a_huge_figure_is_refused_before_it_is_written(tmp_path, value):
+    # written, it was read back as damaged and run again by every rerun
+    from sweep_helpers import fake_trial
+
+    def overflowing(scenario):
+        return {**fake_trial(scenario), "ospa_mean": value}
+
+    out = tmp_path / "e"
+    with pytest.raises(ValueError, match=r"^the trial function returned ospa_mean past \+-1e\+100 "):
+        run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trial": overflowing})
+    assert list((out / "trials").iterdir()) == []

@@ -47,6 +47,7 @@ from trackjam.experiments.progress import make_reporter
 from trackjam.simulation.build import check_swarm_options, several_targets
 from trackjam.experiments.summary import (
     TIMING,
+    TRIAL_MAX_FIGURE,
     DamagedTrial,
     paired_rows,
     parse_trial_filename,
@@ -476,10 +477,15 @@ def _keep(record: dict, folder: Path, name: str, experiment: Experiment, records
 
 def _check_record(record: Mapping[str, Any], name: str, experiment: Experiment) -> None:
     """Refuse, with a ValueError naming them, a record that lacks figures the experiment
-    summarises (a trial function's mistake), before the record is written."""
+    summarises or holds one past +-TRIAL_MAX_FIGURE (inf: a trial function's mistake), before
+    the record is written: read back, such a file is damaged and would be run again each time."""
     missing = [k for k in record_keys(experiment) if k not in record]
     if missing:
         raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} summarises them)")
+    huge = [k for k in record_keys(experiment) if isinstance(record[k], (int, float)) and abs(record[k]) > TRIAL_MAX_FIGURE]
+    if huge:
+        raise ValueError(f"the trial function returned {', '.join(huge)} past +-{TRIAL_MAX_FIGURE:g} "
+                         f"(experiment {name} cannot summarise it)")
 
 
 def _finish(out: Path, experiment, configurations: list[dict], records: list[Mapping], ran: int,

@@ -108,12 +108,17 @@ _IDENTITY = (("experiment", str), ("config", int), ("trial", int), ("seed", int)
 # ours write, 100,000 steps of 20 per-step series, hold 2 million; a file of a few kB can hold
 # billions of zeros (run-length encoded), gigabytes once read
 TRIAL_MAX_VALUES = 20_000_000
+# the largest figure a trial file may hold: far past any a trial yields (powers of 64 agents at
+# 1 MW, 100,000 steps, wall times), and small enough that the summary's sums and squares of
+# 20,000 trials (MAX_TRIAL_RUNS) stay finite; a hand-edited 1e308 gave inf in summary.csv and
+# numpy's overflow warnings
+TRIAL_MAX_FIGURE = 1e100
 
 
 def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
     """The record in one trial file; :class:`DamagedTrial` if it is not a complete one (one
-    row, the identity columns and the figures ``keys``) or holds more than
-    :data:`TRIAL_MAX_VALUES` values."""
+    row, the identity columns and the figures ``keys``, each NaN or within
+    +-:data:`TRIAL_MAX_FIGURE`) or holds more than :data:`TRIAL_MAX_VALUES` values."""
     try:
         meta = pq.read_metadata(path)
         values = sum(meta.row_group(g).column(c).num_values
@@ -135,6 +140,8 @@ def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
         raise DamagedTrial(f"{path.name}: a null or mistyped figure")  # the summary's means would fail on it
     if any(math.isinf(record[k]) for k in keys):  # no trial yields one (NaN: a figure that does not apply)
         raise DamagedTrial(f"{path.name}: an infinite figure")
+    if any(abs(record[k]) > TRIAL_MAX_FIGURE for k in keys):  # NaN compares False: it stays
+        raise DamagedTrial(f"{path.name}: a figure past +-{TRIAL_MAX_FIGURE:g}, larger than any trial yields")
     return record
 
 
