@@ -70,6 +70,12 @@ def test_bench_filter_group_prints_and_writes_its_timings(tmp_path):
     _sane(options)
     assert (options["reserve_memory"], options["velocity_jitter"]) == (1, 0.5)
     assert (row["reserve_memory"], row["velocity_jitter"]) == (0, 0.0)
+    hidden = [r for r in data["filter"] if "hidden-target mode" in r["name"]]
+    for r_ in hidden:  # a filter that lost the hovering target cannot pass for a fast one
+        _sane(r_)
+        assert r_["existence"] > 0.9 and r_["error_m"] < 2.0, r_
+    assert [r_["visibility"] for r_ in hidden] == [[0.05, 0.25, False], [0.05, 0.25, True]]
+    assert row["visibility"] is None
     for key in ("median_ms", "p95_ms"):
         line = next(ln for ln in r.output.splitlines() if f" {key} " in ln)
         assert cell(row[key]) in line

@@ -118,7 +118,8 @@ def test_the_pursuit_preset_is_paper_fig3_with_aim_pointing_and_the_options_that
     b = load_scenario("paper-fig3").model_dump(exclude={"name"})
     diff = {(sec, k): a[sec][k] for sec in a if isinstance(a[sec], dict) for k in a[sec] if a[sec][k] != b[sec][k]}
     assert diff == {("antenna", "pointing"): "aim", ("control", "lead"): 0.5, ("control", "solver"): "exact",
-                    ("filter", "visibility"): {"hide": 0.05, "reappear": 0.25}, ("fusion", "share"): "scans",
+                    ("filter", "visibility"): {"hide": 0.05, "reappear": 0.25, "per_particle": False},
+                    ("fusion", "share"): "scans",
                     ("fusion", "report_spread"): 8.0, ("filter", "mode"): {"radius": 5.0, "mass": 0.2},
                     ("control", "plan_over"): "belief", ("control", "belief_spread"): 8.0,
                     ("filter", "cue"): {"existence": 0.9, "position_std": 2.0, "velocity_std": 2.0, "velocity": "target"}}

@@ -389,10 +389,13 @@ def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
     assert r.notes == [] and r.ran == 8 - len(kept) and r.summary == fresh.summary
 
 
-def test_a_scheduler_without_workers_is_said_not_waited_on_in_silence(capsys):
+def test_a_scheduler_without_workers_is_said_not_waited_on_in_silence(capsys, monkeypatch):
+    """Also: the scheduler's host name is looked up once, by the bounded pre-flight; the client
+    connects to the IP address that answered and looks nothing up again."""
     from trackjam.experiments.backends import open_executor
 
-    address = f"tcp://127.0.0.1:{free_port()}"
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
     scheduler = start(["-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
                        address.rsplit(":", 1)[1], "--no-dashboard"])
     try:
@@ -404,12 +407,22 @@ def test_a_scheduler_without_workers_is_said_not_waited_on_in_silence(capsys):
             except ConfigError:
                 assert time.monotonic() - t0 < 60, "the scheduler did not start"
                 time.sleep(0.3)
-        with open_executor(None, address):
+        looked_up = []
+        real = socket.getaddrinfo
+
+        def spy(host, *args, **kwargs):
+            looked_up.append(host)
+            return real(host, *args, **kwargs)
+
+        monkeypatch.setattr(socket, "getaddrinfo", spy)
+        named = f"tcp://localhost:{port}"
+        with open_executor(None, named):
             pass
     finally:
         kill(scheduler)
+    assert looked_up.count("localhost") == 1, looked_up
     err = capsys.readouterr().err
-    assert err == f"trackjam: the Dask scheduler at {address} has no workers yet; the trials wait for one\n"
+    assert err == f"trackjam: the Dask scheduler at {named} has no workers yet; the trials wait for one\n"
 
 
 def test_a_trial_file_without_a_fingerprint_is_taken_on_its_seed(fresh, tmp_path, capsys):

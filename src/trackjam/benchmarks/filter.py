@@ -18,7 +18,8 @@ def timing_ms(times: np.ndarray) -> dict:
 
 def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000, birth_particles: int = 2_000,
                       mode: tuple[float, float] | None = None,
-                      resampling: tuple[int, float] | None = None) -> dict:
+                      resampling: tuple[int, float] | None = None,
+                      visibility: tuple[float, float, bool] | None = None) -> dict:
     """Median and 95th percentile wall time [ms] of ``predict()`` + ``update()`` with 4 measurements
     (1 from a hovering target 5.2 m ahead of the agent, 3 clutter points drawn afresh each step), after a warm-up step so that numba's
     compilation (cached on disk) is not counted.
@@ -27,11 +28,14 @@ def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000,
     for a fast one: the particles it weighed in its last update (survivors, young component and
     births), its final existence and the distance of its final mean from the target.
     ``mode`` = (radius, mass) times the filter with ``filter.mode`` (its estimate at the mode),
-    ``resampling`` = (memory, jitter) with ``filter.reserve_memory`` and ``filter.velocity_jitter``."""
+    ``resampling`` = (memory, jitter) with ``filter.reserve_memory`` and ``filter.velocity_jitter``,
+    ``visibility`` = (hide, reappear, per_particle) with the hidden-target mode ``filter.visibility``."""
     n_meas = 4
     fields = {} if mode is None else {"filter__mode": {"radius": mode[0], "mass": mode[1]}}
     if resampling is not None:
         fields |= {"filter__reserve_memory": resampling[0], "filter__velocity_jitter": resampling[1]}
+    if visibility is not None:
+        fields |= {"filter__visibility": dict(zip(("hide", "reappear", "per_particle"), visibility))}
     c = build(load_scenario("paper-fig3", filter__particles=particles, filter__birth_particles=birth_particles,
                             **fields))
     rng = np.random.default_rng(seed)
@@ -67,6 +71,7 @@ def bench_filter_step(repeats: int = 50, seed: int = 0, particles: int = 10_000,
         "mode": None if f.mode is None else list(f.mode),
         "reserve_memory": f.reserve_memory,
         "velocity_jitter": f.velocity_jitter,
+        "visibility": None if f.visibility is None else [*f.visibility, f.per_particle],
         "existence": float(est.existence),
         "error_m": float(np.linalg.norm(est.mean[:3] - x[:3])),
     }

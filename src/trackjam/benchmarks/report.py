@@ -31,6 +31,11 @@ def _groups(quick: bool) -> dict:
                            {"name": "Bernoulli filter step, resampling of a new track (filter.reserve_memory 1, "
                                     "filter.velocity_jitter 0.5)",
                             **filter.bench_filter_step(repeats=20 if quick else 200, resampling=(1, 0.5))},
+                           {"name": "Bernoulli filter step, hidden-target mode (filter.visibility 0.05, 0.25)",
+                            **filter.bench_filter_step(repeats=20 if quick else 200, visibility=(0.05, 0.25, False))},
+                           {"name": "Bernoulli filter step, hidden-target mode per particle "
+                                    "(filter.visibility 0.05, 0.25, per_particle)",
+                            **filter.bench_filter_step(repeats=20 if quick else 200, visibility=(0.05, 0.25, True))},
                            {"name": "LMB filter step, 3 targets", **lmb.bench_lmb_step(repeats=5 if quick else 100)}],
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [*(run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")),

@@ -175,9 +175,10 @@ def _read_exactly(sock: socket.socket, n: int, deadline: float) -> bytes:
     return data
 
 
-def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> str:
     """Refuse, with one line and within about ``timeout_s``, an address that is not a reachable
-    Dask scheduler speaking plain TCP."""
+    Dask scheduler speaking plain TCP. Returns the IP address (as ``host``, an IPv6 one in
+    brackets) that answered, so that the client need not look the name up again."""
     scheme, host, port = parse_scheduler_address(address)
     where = f"the Dask scheduler at {address}"
     deadline = time.monotonic() + timeout_s
@@ -185,9 +186,11 @@ def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> 
         sock = _connect(_look_up(address, host, port, timeout_s), timeout_s)
     except OSError as err:
         raise ConfigError(f"cannot reach {where} within {timeout_s:g} s: {err.strerror or err}") from None
+    ip = sock.getpeername()[0]
+    ip = f"[{ip}]" if ":" in ip else ip
     if scheme in TCP_CARRIED:  # its server speaks second: only the connection is checked
         sock.close()
-        return
+        return ip
     with sock:
         try:
             head = _read_exactly(sock, 8, deadline)
@@ -200,6 +203,7 @@ def check_dask_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> 
                               f"{timeout_s:g} s: not a Dask scheduler?") from None
         except (OSError, ValueError) as err:
             raise ConfigError(f"{address} does not speak Dask's protocol ({err}): not a Dask scheduler?") from None
+    return ip
 
 
 def _look_up(address: str, host: str, port: int, timeout_s: float) -> list[tuple]:
@@ -277,8 +281,12 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
         from distributed import Client
     except ImportError:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'trackjam[dask]'") from None
-    check_dask_scheduler(address, CONNECT_TIMEOUT_S)  # the timeout as it is now (a test makes it short)
-    if parse_scheduler_address(address)[0] == "tls":
+    ip = check_dask_scheduler(address, CONNECT_TIMEOUT_S)  # the timeout as it is now (a test makes it short)
+    scheme, _, port = parse_scheduler_address(address)
+    # plain TCP connects to the IP address the pre-flight reached: the client's own name lookup
+    # took no timeout of ours; TLS and websockets keep the name their certificates are for
+    target = f"tcp://{ip}:{port}" if scheme == "tcp" else address
+    if scheme == "tls":
         from distributed.security import Security
 
         # else Client fails with a TypeError and its half-built self hangs 10 s at exit
@@ -290,7 +298,7 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
     # waited 10 s and printed a traceback ("Exception ignored in: <function Client.__del__>")
     client = Client.__new__(Client)
     try:
-        client.__init__(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        client.__init__(target, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
     except Exception as err:  # noqa: BLE001 - Dask's own refusals vary: a TypeError for TLS without a security configuration
         _discard(client)
         msg = " ".join(str(err).split()) or type(err).__name__
