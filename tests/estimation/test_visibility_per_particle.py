@@ -182,3 +182,40 @@ def test_the_pursuit_preset_runs_with_it_and_keeps_one_visibility_per_particle()
 def test_a_value_that_is_not_a_boolean_is_one_line_naming_the_key():
     with pytest.raises(ConfigError, match=r"filter\.visibility\.per_particle"):
         load_scenario("pursuit", overrides=["filter.visibility.per_particle=maybe"])
+
+
+def test_the_particles_visibility_is_predicted_by_the_chain_and_none_without_the_option():
+    f, ant = two_place_filter(True)
+    f.predict()
+    f.update(np.zeros((0, 3)), U, INSIDE, ant.l_max)
+    posterior = f.visible.copy()
+    np.testing.assert_array_equal(posterior, f._nu)
+    f.predict()
+    np.testing.assert_allclose(f.visible, (1 - HIDE) * posterior + REAPPEAR * (1 - posterior), rtol=1e-12)
+    assert f.visible.shape == (len(f.particles),)
+    g, _ = two_place_filter(False)
+    assert g.visible is None
+
+
+def test_planning_over_the_belief_samples_where_the_target_can_be_seen():
+    """The planning sample of `control.plan_over: belief` weighs each particle by its P(visible):
+    Eq. (12)'s chance of detection is nu_i p_D(x_i), so after two misses inside the cone the sample
+    draws fewer points there than the weights alone would, as many as w_i nu_i asks."""
+    from trackjam.control.planning import belief_sample
+    from trackjam.simulation.agent import Agent
+
+    f, ant = two_place_filter(True)
+    for _ in range(2):
+        f.predict()
+        f.update(np.zeros((0, 3)), U, INSIDE, ant.l_max)
+    agent = Agent.create(0, U, INSIDE, f, None, np.random.SeedSequence(1), np.random.SeedSequence(2))
+    k = 64
+    sample = agent.predict(3, 0.5, belief_samples=k).belief
+    inside = np.linalg.norm(f.particles[:, :3] - INSIDE, axis=1) < 1e-9
+    w = np.exp(f.log_w)
+    share_w = float(w[inside].sum())
+    share_wnu = float((w * f.visible)[inside].sum() / (w @ f.visible))
+    got = float(np.mean(np.linalg.norm(sample - INSIDE, axis=1) < 1e-9))
+    assert got == pytest.approx(share_wnu, abs=1.0 / k)
+    assert share_wnu < share_w - 2.0 / k  # the weights alone would have drawn more points inside
+    np.testing.assert_array_equal(belief_sample(f.particles, w * f.visible, k), sample)

@@ -671,6 +671,19 @@ class BernoulliFilter:
         return np.vstack([self._X, Y]), log_w
 
     @property
+    def visible(self) -> np.ndarray | None:
+        """With ``filter.visibility.per_particle``, each of :attr:`particles`' P(visible): after
+        ``predict()`` predicted to the current step, after ``update()`` the posterior; else None."""
+        if not self.per_particle:
+            return None
+        predicted = self._e_pred is not None and self._nu_pred is not None
+        nu = self._nu_pred if predicted else self._nu
+        if self._young is None:
+            return nu
+        nu_y = self._chain(self._young.nu) if predicted else self._young.nu
+        return np.concatenate([nu, nu_y])
+
+    @property
     def particles(self) -> np.ndarray:
         """The particles of the surviving density s: s_t after ``update()``, the survivors moved
         to t after ``predict()`` (births not included); weights ``exp(log_w)``."""
