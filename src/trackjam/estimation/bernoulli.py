@@ -238,15 +238,17 @@ def posterior_visibility(nu: float, log_V: float) -> float:
     return float(expit(math.log(nu) - math.log1p(-nu) + log_V))
 
 
-def mix_visibility_per_particle(log_w: np.ndarray, log_L: np.ndarray,
-                                nu: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def mix_visibility_per_particle(log_w: np.ndarray, log_L: np.ndarray, nu: np.ndarray,
+                                log_V_all: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """The hidden-target mode with P(visible) carried per particle (ours,
     ``filter.visibility.per_particle``): the state is (x, visible) and the particles hold
     ``nu_i`` = P(visible | x_i). Returns the update factors ``log L'_i`` with
     ``L'_i = nu_i L_i + (1 - nu_i)``, each particle's posterior ``nu_i L_i / L'_i``, and the
     log-evidence ``log V`` with ``V = sum_i w_i nu_i L_i / nu_bar`` (``nu_bar = sum_i w_i nu_i``),
     so that ``sum_i w_i L'_i = nu_bar V + 1 - nu_bar`` as with one P(visible) for the filter.
-    With every ``nu_i`` equal this is :func:`mix_visibility` and :func:`posterior_visibility`."""
+    With every ``nu_i`` equal this is :func:`mix_visibility` and :func:`posterior_visibility`.
+    Where every ``nu_i`` is 0, ``log V`` is ``log sum_i w_i L_i``, ``log_V_all`` when the caller
+    has it."""
     with np.errstate(divide="ignore", invalid="ignore"):
         log_nu = np.log(nu)
         log_vis = log_nu + log_L
@@ -255,7 +257,7 @@ def mix_visibility_per_particle(log_w: np.ndarray, log_L: np.ndarray,
     nu_post = np.clip(np.nan_to_num(nu_post, nan=0.0), 0.0, 1.0)
     log_nu_bar = float(kernel_logsumexp(log_w + log_nu))
     if log_nu_bar == -np.inf:
-        log_V = float(kernel_logsumexp(log_w + log_L))
+        log_V = float(kernel_logsumexp(log_w + log_L)) if log_V_all is None else log_V_all
     else:
         log_V = float(kernel_logsumexp(log_w + log_vis)) - log_nu_bar
     return log_Lm, nu_post, log_V
@@ -437,14 +439,13 @@ class BernoulliFilter:
             m_y, C_y = weighted_moments(self._young.X, np.exp(self._young.log_w))
             parts.append((self._w_surv * M, PHI @ m_y, PHI @ C_y @ PHI.T + self.accel_var * GG))
         self._e_pred = e_pred
-        if self.visibility is not None:
-            hide, reappear = self.visibility
-            self.nu_pred = (1.0 - hide) * self.nu + reappear * (1.0 - self.nu)
-            if self.per_particle:  # the chain per particle; a new target is born visible
-                self._nu_pred = self._chain(self._nu)
-                nu_s = float(np.exp(self._log_w) @ self._nu_pred)
-                nu_y = float(np.exp(self._young.log_w) @ self._chain(self._young.nu)) if self._young is not None else 0.0
-                self.nu_pred = self._w_surv * ((1.0 - M) * nu_s + M * nu_y) + self._w_birth * (1.0 - hide)
+        if self.per_particle:  # the chain per particle; a new target is born visible
+            self._nu_pred = self._chain(self._nu)
+            nu_s = float(np.exp(self._log_w) @ self._nu_pred)
+            nu_y = float(np.exp(self._young.log_w) @ self._chain(self._young.nu)) if self._young is not None else 0.0
+            self.nu_pred = self._w_surv * ((1.0 - M) * nu_s + M * nu_y) + self._w_birth * self._chain(1.0)
+        elif self.visibility is not None:
+            self.nu_pred = self._chain(self.nu)
         self._m_birth = None
         if self.n_mb:
             self._m_birth = draw_measurement_birth(self.rng, self.b, self._prev_G, self.n_mb, self.v_m)
@@ -455,10 +456,12 @@ class BernoulliFilter:
         self._last = Estimate(e_pred, mean, cov)
         return self._last
 
-    def _young_at_t(self, scan: Scan) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def _young_at_t(self, scan: Scan) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """The young component at t: its particles moved by predict(), or drawn again by the
         two-scan proposal when both its scan and the current one hold measurements; with
-        ``filter.reserve_memory``, also which of them their scan at t-1 supported."""
+        ``filter.reserve_memory``, also which of them their scan at t-1 supported; with
+        ``filter.visibility.per_particle``, their P(visible) predicted to t (drawn again, the
+        component's mean for each)."""
         young = self._young
         if self.two_scan and len(young.scan.Z) and len(scan.Z):
             G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
@@ -473,10 +476,11 @@ class BernoulliFilter:
                                      self.accel_var, weigh)
             if np.any(np.isfinite(log_w)):
                 self._move(X0)
-                return X0, log_w, log_L_prev[-1] > 0.0 if self.reserve_memory > 0 else None
+                nu = None if young.nu is None else np.full(len(X0), self._chain(float(np.exp(young.log_w) @ young.nu)))
+                return X0, log_w, log_L_prev[-1] > 0.0 if self.reserve_memory > 0 else None, nu
         X = young.X.copy()
         self._move(X)
-        return X, young.log_w, young.supported
+        return X, young.log_w, young.supported, None if young.nu is None else self._chain(young.nu)
 
     def update(self, Z: np.ndarray, u: np.ndarray, aim: np.ndarray, level_w: float,
                others: Sequence[Scan] = ()) -> Estimate:
@@ -496,12 +500,10 @@ class BernoulliFilter:
             log_s, log_b = np.log(self._w_surv), np.log(self._w_birth)
             blocks = [(self._X, log_s + np.log1p(-M) + self._log_w)]
             if self._young is not None:
-                XY, log_wY, young_seen = self._young_at_t(scan)
+                XY, log_wY, young_seen, nu_Y = self._young_at_t(scan)
                 blocks.append((XY, log_s + np.log(M) + log_wY))
-                if nus is not None:  # drawn again, the young particles take their component's mean
-                    y = self._young
-                    nus.append(self._chain(y.nu) if XY.shape == y.X.shape and log_wY is y.log_w
-                               else np.full(len(XY), self._chain(float(np.exp(y.log_w) @ y.nu))))
+                if nus is not None:
+                    nus.append(nu_Y)
             if self.n_mb:
                 blocks.append((self._m_birth[0], log_b + np.log(self.birth_mix) + self._m_birth[1]))
             n_u = self.n_b - self.n_mb
@@ -519,8 +521,8 @@ class BernoulliFilter:
         log_Lm = log_L
         nu_post = None
         if self.per_particle:
-            nu_all = np.concatenate(nus + [np.full(len(X) - sum(len(v) for v in nus), 1.0 - self.visibility[0])])
-            log_Lm, nu_post, self.log_evidence = mix_visibility_per_particle(log_w, log_L, nu_all)
+            nu_all = np.concatenate(nus + [np.full(len(X) - sum(len(v) for v in nus), self._chain(1.0))])
+            log_Lm, nu_post, self.log_evidence = mix_visibility_per_particle(log_w, log_L, nu_all, log_V)
         elif self.visibility is not None:
             log_Lm = mix_visibility(log_L, self.nu_pred)
             self.nu = posterior_visibility(self.nu_pred, log_V)

@@ -100,9 +100,9 @@ class Agent:
         if belief_samples:
             f = self.filter
             w = np.exp(f.log_w - f.log_w.max())
-            if f.visible is not None:  # filter.visibility.per_particle: where the target is and can be seen
-                w = w * f.visible
-                w = w if w.sum() > 0.0 else np.exp(f.log_w - f.log_w.max())
+            nu = f.visible  # filter.visibility.per_particle: where the target is and can be seen
+            if nu is not None and w @ nu > 0.0:
+                w = w * nu
             belief = belief_sample(f.particles, w, belief_samples)
         return Message(self.index, "prediction", t, position=self.position.copy(), estimate=estimate,
                        aim=self.aim.copy(), coasted=None if coasted is None else coasted[0], belief=belief)
