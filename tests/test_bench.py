@@ -62,7 +62,10 @@ def test_bench_filter_group_prints_and_writes_its_timings(tmp_path):
     r = CliRunner().invoke(app, ["bench", "--quick", "--only", "filter", "--json", str(out)])
     assert r.exit_code == 0, r.output
     data = json.loads(out.read_text())
-    assert set(data) == {"machine", "quick", "filter"} and data["quick"] is True
+    assert set(data) == {"machine", "quick", "filter", "calibration"} and data["quick"] is True
+    cal = data["calibration"]
+    assert cal["workload"].startswith("numpy sort") and 0 < cal["start_ms"] < 1e4 and 0 < cal["end_ms"] < 1e4
+    assert f"{cal['start_ms']:.1f} ms" in r.output and "calibration at the end" in r.output
     row = data["filter"][0]
     _sane(row)
     assert row["repeats"] == 20 and data["machine"]["cores"] >= 1

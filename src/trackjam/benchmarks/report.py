@@ -21,6 +21,26 @@ def machine() -> dict:
     }
 
 
+CALIBRATION = "numpy sort of 1,000,000 float64 (seed 0), median of 7"
+
+
+def calibration_ms(repeats: int = 7) -> float:
+    """Median wall time [ms] of a fixed single-threaded workload (``CALIBRATION``), timed at the
+    start and the end of a bench run: the same machine drifts on shared hosts, and rows
+    measured on two machines compare once each is divided by its run's calibration."""
+    import time
+
+    import numpy as np
+
+    x = np.random.default_rng(0).random(1_000_000)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        np.sort(x, kind="quicksort")
+        times.append((time.perf_counter() - t0) * 1e3)
+    return float(np.median(times))
+
+
 def _groups(quick: bool) -> dict:
     from trackjam.benchmarks import control, env, filter, lmb, run
 
@@ -145,11 +165,17 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
         check_writable(json_out.absolute().parent, f"--json {json_out}")
     results = {"machine": machine(), "quick": quick}
     print(f"machine: {results['machine']}", flush=True)
+    start = calibration_ms()
+    print(f"calibration ({CALIBRATION}): {start:.1f} ms", flush=True)
     for g in chosen:
         print(f"running {g} benchmarks...", flush=True)
         rows = groups[g]()
         results[g] = rows
         _print(g, rows)
+    end = calibration_ms()
+    results["calibration"] = {"workload": CALIBRATION, "start_ms": start, "end_ms": end}
+    print(f"calibration at the end: {end:.1f} ms (at the start {start:.1f} ms; "
+          "a drift between the two means the machine's speed changed during the run)", flush=True)
     if json_out is not None:
         from trackjam.errors import OutputError
         from trackjam.files import atomic_write
