@@ -27,6 +27,21 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+MAX_WORKERS = 8  # the longest test file takes about 3 minutes; more workers only cost memory
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config):
+    """`-n auto` (pyproject.toml): one pytest-xdist worker per core this process may run on, at
+    most ``MAX_WORKERS``, so that a many-core machine does not start dozens of workers, each
+    with its own numba, Dask and process pools. PYTEST_XDIST_AUTO_NUM_WORKERS, when set, is
+    left to pytest-xdist."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(cores, MAX_WORKERS))
+
+
 @pytest.fixture(scope="session")
 def chromium_path() -> Path:
     """A headless-capable Chromium or Chrome (see tests/browser.py). Skips with the reason when
