@@ -120,11 +120,10 @@ def per_draw(which):
     return out
 
 
-def summary(which):
-    """Existence gap (mean, standard error over draws), pooled position gap (mean, standard
-    error over the steps as if independent), the number of steps and the position gap's
-    standard error over the draws."""
-    draws = per_draw(which)
+def summary(draws):
+    """Of :func:`per_draw`'s figures: existence gap (mean, standard error over draws), pooled
+    position gap (mean, standard error over the steps as if independent), the number of steps
+    and the position gap's standard error over the draws."""
     ge = [e for e, _ in draws]
     gp = [x for _, p in draws for x in p]
     _, se_draws = clustered([np.asarray(p) for _, p in draws])
@@ -145,7 +144,7 @@ def test_the_cluster_robust_error_is_the_plain_one_for_one_value_a_group():
 def test_the_comparison_has_no_selection_bias():
     """A reference run in the filter's place shows no gap; compared on the steps it selected
     itself (the earlier design) it would look about 0.35 m better than the others."""
-    ge, se_e, gp, se_p, n, se_d = summary(None)
+    ge, se_e, gp, se_p, n, se_d = summary(per_draw(None))
     print(f"reference vs reference: existence {ge:+.4f} ± {se_e:.4f}, position {gp:+.3f} ± {se_d:.3f} m "
           f"(standard error over draws; {se_p:.3f} over the {n} steps as if independent)")
     assert n >= 30
@@ -154,7 +153,7 @@ def test_the_comparison_has_no_selection_bias():
 
 
 def test_default_filter_against_the_high_particle_reference_under_weak_evidence():
-    ge, se_e, gp, se_p, n, se_d = summary("default")
+    ge, se_e, gp, se_p, n, se_d = summary(per_draw("default"))
     print(f"default vs reference: existence {ge:+.4f} ± {se_e:.4f}, position {gp:+.3f} ± {se_d:.3f} m ({n} steps)")
     assert n >= 100  # enough confirmed steps to judge positions
     # measured with 16 runs a draw: -0.030 in existence and +0.70 ± 0.22 m in position (README,
@@ -169,11 +168,11 @@ def test_the_resampling_options_narrow_the_gap():
     counts, on the same draws, steps and seeds as the default's, paired draw by draw (measured
     with 16 runs a draw: existence -0.005 against the default's -0.030, position +0.25 against
     +0.70 m, the paired position difference -0.45 ± 0.18 m, standard error over the draws)."""
-    ge, se_e, gp, se_p, n, se_d = summary("options")
-    ge0 = summary("default")[0]
+    opt, dflt = per_draw("options"), per_draw("default")
+    ge, se_e, gp, se_p, n, se_d = summary(opt)
+    ge0 = summary(dflt)[0]
     print(f"with the options: existence {ge:+.4f} ± {se_e:.4f}, position {gp:+.3f} ± {se_d:.3f} m ({n} steps)")
     assert abs(ge) < 0.025 and abs(ge) < abs(ge0) - 0.01
-    opt, dflt = per_draw("options"), per_draw("default")
     diff, se = clustered([np.asarray(po) - np.asarray(pd) for (_, po), (_, pd) in zip(opt, dflt)])
     print(f"options - default, paired by step: {diff:+.3f} ± {se:.3f} m (standard error over draws)")
     assert gp < 0.6 and diff < -0.1

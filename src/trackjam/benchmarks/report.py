@@ -26,8 +26,9 @@ CALIBRATION = "numpy sort of 1,000,000 float64 (seed 0), median of 7"
 
 def calibration_ms(repeats: int = 7) -> float:
     """Median wall time [ms] of a fixed single-threaded workload (``CALIBRATION``), timed at the
-    start and the end of a bench run: the same machine drifts on shared hosts, and rows
-    measured on two machines compare once each is divided by its run's calibration."""
+    start and the end of a bench run: a difference between the two says the machine's speed
+    changed during the run (shared hosts drift). Dividing a row by its run's calibration is a
+    rough guide for comparing two machines, not a measurement (README, Benchmarks)."""
     import time
 
     import numpy as np
