@@ -372,7 +372,7 @@ def _quality_rows(m: dict) -> list[tuple[str, str]]:
 @app.command()
 @user_errors
 def experiment(
-    name: str = typer.Argument(..., help="table1 | constraints | solvers | holding | comms | swarm"),
+    name: str = typer.Argument(..., help="table1 | constraints | solvers | holding | comms | oracles | swarm"),
     trials: int = typer.Option(20, "--trials", help="Trials per configuration (the paper: 20)."),
     steps: int = typer.Option(30, "--steps", help="Steps per trial (the paper: 30)."),
     seed: int = typer.Option(0, "--seed", help="Experiment seed; each trial's seed derives from it."),

@@ -600,6 +600,29 @@ class Metrics(_Model):
     )
 
 
+class Oracle(_Model):
+    """Diagnostic oracles (ours): the team is told what no real team can know, to measure what
+    that knowledge is worth (docs/holding.md). Every one is off by default; none is an option
+    for a real team."""
+
+    state_before_hiding: StrictBool = Field(
+        False, description="after the last step before each occlusion, every agent's particles are redrawn tight "
+        "around the target's true state (0.3 m and 0.1 m/s per axis), its existence kept",
+    )
+    truth_after_hiding: Integer(0, MAX_STEPS) = Field(
+        0, description="on the first k steps after each occlusion the team plans (and with `antenna.pointing: aim` "
+        f"points) at the target's true position, at that point rather than over its belief; 0: never, in [0, {MAX_STEPS}]",
+    )
+    follow_up: Integer(0, MAX_STEPS) = Field(
+        0, description="after any agent detects the target on a step after an occlusion, the team plans (and points) "
+        f"at its true position on the next k steps; 0: never, in [0, {MAX_STEPS}]",
+    )
+    empty_hidden_scans: StrictBool = Field(
+        False, description="the filters are told that the scans of an occluded step carry no target: they weigh them "
+        "as if every antenna were off",
+    )
+
+
 class Scenario(_Model):
     name: str = Field(
         "scenario",
@@ -623,6 +646,10 @@ class Scenario(_Model):
     control: Control = Field(default_factory=Control)
     comms: Comms = Field(default_factory=Comms)
     metrics: Metrics = Field(default_factory=Metrics)
+    oracle: Oracle | None = Field(
+        None, description="diagnostic oracles (ours): the team is told what no real team knows, to measure what that "
+        "knowledge is worth; null: none, as a real team",
+    )
 
     @field_validator("name")
     @classmethod

@@ -65,7 +65,7 @@ def experiment_command(
     console.print(table)
     if result.paired:
         if len(result.paired) <= MAX_PAIRS_SHOWN:
-            console.print(paired_table(result, experiment.metrics, units))
+            console.print(paired_table(result, experiment.metrics, units, experiment.counts))
         else:
             print(f"{len(result.paired)} paired comparisons in {result.out / 'paired.csv'}")
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
@@ -75,9 +75,10 @@ def experiment_command(
 MAX_PAIRS_SHOWN = 16  # more (the swarm grid's 36) stay in paired.csv
 
 
-def paired_table(result, metrics, units):
+def paired_table(result, metrics, units, counts=()):
     """The paired comparisons as a table: per pair a -> b, each metric's mean over the trials of
-    b - a with its 95 % interval, marked * where the interval leaves out 0 (significant)."""
+    b - a with its 95 % interval, marked * where the interval leaves out 0 (significant); for
+    each count, the trials b gained and lost against a, with the sign test's p (* below 0.05)."""
     from rich.markup import escape
     from rich.table import Table
 
@@ -88,6 +89,8 @@ def paired_table(result, metrics, units):
     table.add_column("trials", justify="right")
     for (stem, _, _), unit in zip(metrics, units):
         table.add_column(escape(f"{stem} [{'points' if unit == '%' else unit}]" if unit else stem), justify="right")
+    for stem, _, _ in counts:
+        table.add_column(f"{stem} gained/lost (p)", justify="right")
     for row in result.paired:
         cells = []
         for (stem, _, _), unit in zip(metrics, units):
@@ -95,6 +98,10 @@ def paired_table(result, metrics, units):
             text = _mean_ci(diff, ci, 100.0 if unit == "%" else 1.0, signed=True)
             significant = diff is not None and ci is not None and math.isfinite(ci) and abs(diff) > ci
             cells.append(text + (" *" if significant else ""))
+        for stem, _, _ in counts:
+            p = row.get(f"{stem}_p")
+            shown = "-" if p is None or not math.isfinite(p) else f"{p:.2g}" + (" *" if p < 0.05 else "")
+            cells.append(f"{row[f'{stem}_gained']}/{row[f'{stem}_lost']} ({shown})")
         table.add_row(f"{row['a']} -> {row['b']}", escape(row["label"]), str(row["trials"]), *cells)
     return table
 

@@ -16,7 +16,9 @@ trial to trial while every configuration of trial k sees the same truth:
 
 - ``holding``: how well the team holds the target, judged by the truth, for the paper's
   behaviour and each pursuit option (:data:`HOLDING_VARIANTS`), beside the clairvoyant ceiling;
-- ``comms``: the distributed team (``pointing: aim``) under lost and late messages and failures.
+- ``comms``: the distributed team (``pointing: aim``) under lost and late messages and failures;
+- ``oracles``: the preset ``pursuit`` beside the same preset told what no real team knows
+  (``oracle.*``, :data:`ORACLE_VARIANTS`): what each piece of knowledge would be worth.
 
 Ours, on several targets (the ``swarm-3`` preset's settings, the targets' jamming response on):
 
@@ -151,6 +153,18 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("preset pursuit", preset_settings("pursuit")),
 )
 
+# The rows of `oracles`: the preset, then the preset told what no real team knows (oracle.*,
+# diagnostic), each measuring what that knowledge is worth to re-acquisition after the occlusion.
+PURSUIT_SETTINGS = HOLDING_VARIANTS[-1][1]
+ORACLE_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("preset pursuit", PURSUIT_SETTINGS),
+    ("told the true state before it hides", {**PURSUIT_SETTINGS, "oracle.state_before_hiding": True}),
+    ("told where it reappears (1 step)", {**PURSUIT_SETTINGS, "oracle.truth_after_hiding": 1}),
+    ("told where it is on 3 steps after it reappears", {**PURSUIT_SETTINGS, "oracle.truth_after_hiding": 3}),
+    ("told where it is on 3 steps after each detection", {**PURSUIT_SETTINGS, "oracle.follow_up": 3}),
+    ("filters told the hidden scans are empty", {**PURSUIT_SETTINGS, "oracle.empty_hidden_scans": True}),
+)
+
 # The rows of `comms`: the fault model of the distributed team, one fault at a time.
 COMMS_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     *((f"loss {p:g}", {"comms.loss": p}) for p in (0.0, 0.1, 0.3, 0.5, 1.0)),
@@ -220,6 +234,18 @@ EXPERIMENTS: dict[str, Experiment] = {
         trials=SEED,
         base_settings={"control.solver": "exact", "antenna.pointing": "aim"},
         pairs=tuple(_against(1, COMMS_VARIANTS)),  # every fault against the faultless team
+    ),
+    "oracles": Experiment(
+        "oracles",
+        "ours: what the preset pursuit would re-acquire after the Fig. 3 occlusion if told what no real team knows",
+        _variants(ORACLE_VARIANTS),
+        "oracles.png",
+        panels=HOLDING_PANELS,
+        metrics=HOLDING_METRICS,
+        counts=COUNTS,
+        trials=SEED,
+        base_settings={"control.solver": "exact"},
+        pairs=tuple(_against(1, ORACLE_VARIANTS)),  # every oracle against the preset
     ),
 }
 

@@ -510,7 +510,7 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
 
     put("summary.csv", lambda path: write_table(path, summary))
     put("timing.csv", lambda path: write_table(path, timing))
-    paired = paired_rows(records, experiment.pairs, experiment.metrics)  # none without pairs
+    paired = paired_rows(records, experiment.pairs, experiment.metrics, experiment.counts)  # none without pairs
     if paired:
         put("paired.csv", lambda path: write_table(path, paired))
     put(experiment.figure, lambda path: atomic_write(path, lambda tmp: write_figure(experiment, summary, tmp)))

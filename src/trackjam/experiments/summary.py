@@ -235,12 +235,15 @@ def table_rows(
 Pair = tuple[int, int, str]  # (configuration a, configuration b, what b - a compares)
 
 
-def paired_rows(records: list[Mapping[str, Any]], pairs: Iterable[Pair], metrics: tuple[Metric, ...]) -> list[dict[str, Any]]:
+def paired_rows(records: list[Mapping[str, Any]], pairs: Iterable[Pair], metrics: tuple[Metric, ...],
+                counts: tuple[Count, ...] = ()) -> list[dict[str, Any]]:
     """One row per pair (a, b, label): ``trials`` both ran, and for each metric ``STEM_diff``, the
     mean over those trials of b's value minus a's (trials where either lacks it, NaN, left out),
     ``STEM_ci95``, the half-width of its t-based 95 % interval: a paired comparison; and for a
     metric of :data:`WHERE_DEFINED`, ``STEM_trials``: the trials both define, the differences'
-    number (as :func:`table_rows` states each configuration's)."""
+    number (as :func:`table_rows` states each configuration's). For each count ``STEM`` the
+    sign test of the pair (:func:`sign_test`): ``STEM_gained`` and ``STEM_lost``, the trials
+    where b has it and a not and the reverse, and ``STEM_p``, the two-sided p-value."""
     by = {(int(r["config"]), int(r["trial"])): r for r in records}
     rows = []
     for a, b, label in pairs:
@@ -252,8 +255,27 @@ def paired_rows(records: list[Mapping[str, Any]], pairs: Iterable[Pair], metrics
             row[f"{stem}_diff"], row[f"{stem}_ci95"] = mean_ci95(d)
             if key in WHERE_DEFINED:
                 row[f"{stem}_trials"] = len(d)
+        for stem, key, _ in counts:
+            both = [(by[(a, k)][key], by[(b, k)][key]) for k in trials]
+            row[f"{stem}_gained"], row[f"{stem}_lost"], row[f"{stem}_p"] = sign_test(both)
         rows.append(row)
     return rows
+
+
+def sign_test(pairs: Iterable[tuple[Any, Any]]) -> tuple[int, int, float]:
+    """(gained, lost, p) of paired yes/no outcomes (a, b), 1 yes, 0 no, NaN or None where it does
+    not apply (such pairs are left out): ``gained`` pairs have b and not a, ``lost`` a and not b,
+    and ``p`` is the exact two-sided binomial p-value of gained against lost at 1/2 (NaN when
+    both are 0: the two never differ)."""
+    gained = lost = 0
+    for a, b in pairs:
+        if not (_defined(a) and _defined(b)):
+            continue
+        gained += int(b == 1 and a != 1)
+        lost += int(a == 1 and b != 1)
+    if gained + lost == 0:
+        return 0, 0, math.nan
+    return gained, lost, float(stats.binomtest(gained, gained + lost, 0.5).pvalue)
 
 
 def write_table(path: Path, rows: list[dict[str, Any]]) -> None:

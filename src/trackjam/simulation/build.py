@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from trackjam.simulation.team import TeamSettings
 from trackjam.viz.settings import FigureSettings
 from trackjam.world.moves import displacement_set
 from trackjam.world.target import Response, TargetParams
+
+if TYPE_CHECKING:
+    from trackjam.config.model import Oracle
 
 
 MAX_THREADS = 1024  # control.grasp.threads' bound
@@ -168,6 +171,7 @@ class Components:
     make_filter: Callable[[np.random.Generator], BernoulliFilter]  # one agent's filter from its stream
     cue: tuple[float, float, float] | None  # filter.cue as (e_0, position std [m], velocity std [m/s])
     cue_velocity: bool  # filter.cue.velocity: target (the cue's velocity is the target's first one; else at rest)
+    oracle: Oracle | None = None  # oracle: what the team is told of the truth (diagnostic, ours); None: nothing
 
     def seed_tree(self) -> tuple[np.random.SeedSequence, list[list[np.random.SeedSequence]], np.random.SeedSequence]:
         return seed_tree(self.seed, self.n_agents)
@@ -233,6 +237,7 @@ def build(s: Scenario) -> Components:
         cue=None if s.filter.cue is None else (s.filter.cue.existence, s.filter.cue.position_std,
                                                s.filter.cue.velocity_std),
         cue_velocity=s.filter.cue is not None and s.filter.cue.velocity == "target",
+        oracle=s.oracle,
     )
 
 
@@ -257,6 +262,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
         ("comms.loss", s.comms.loss, 0.0),
         ("comms.delay_steps", s.comms.delay_steps, 0),
         ("comms.failures", s.comms.failures, []),
+        ("oracle", s.oracle, None),
     ]
 
 

@@ -32,6 +32,11 @@ if TYPE_CHECKING:  # the scenario is read in one place, simulation/build.py
     from trackjam.simulation.build import Scenario
 
 
+# oracle.state_before_hiding: the spread of the particles redrawn around the true state
+# (0.3 m and 0.1 m/s per axis)
+TOLD_COV = np.diag([0.3**2] * 3 + [0.1**2] * 3)
+
+
 @dataclass(frozen=True)
 class Transmission:
     """What the antennas did during a step (Eqs. 9-10)."""
@@ -104,6 +109,7 @@ class Simulation:
         self.team = Team(agents, c.team, np.random.default_rng(comms_seed))
         self.log = RunLog(n_agents=len(agents), gate=c.gate)
         self.t = 0
+        self.follow = 0  # oracle.follow_up: steps left on which the team is told the truth
 
     @property
     def done(self) -> bool:
@@ -119,16 +125,21 @@ class Simulation:
         self.t = t = self.t + 1
         truth.step(t)
         team.predict(t, c.plan.belief_samples)
-        decisions, solve_s = team.decide(c.displacements, c.antenna, c.low, c.high, c.plan, actions)
+        decisions, solve_s = team.decide(c.displacements, c.antenna, c.low, c.high, c.plan, actions, self._told(t))
         prev = team.positions
         team.apply(decisions, c.displacements)
         levels = np.array([d.level for d in decisions], dtype=np.int64)
         tx = self._transmit(levels)
         truth.apply_jamming(t, float(tx.to_target_w.sum()))
         scans = self._scans(tx)
-        posteriors = team.update([Z for Z, _ in scans], tx.points, tx.level_w)
+        oracle = c.oracle
+        hidden = truth.exists and any(a <= t <= b for a, b in c.target.occlusions)
+        weighed_w = tx.level_w * 0.0 if oracle is not None and oracle.empty_hidden_scans and hidden else tx.level_w
+        posteriors = team.update([Z for Z, _ in scans], tx.points, weighed_w)
         fused = team.fuse(posteriors)
         team.note_jamming(tx.points, tx.level_w)
+        if oracle is not None:
+            self._tell_after_update(t, [bool(f.any()) for _, f in scans])
         report = next((d for d in decisions if d.mode != "down"), decisions[0])
         existence = np.nan if fused is None else fused.existence
         est = fused.mean[:3] if (fused is not None and fused.mean is not None and seen(fused) > CONFIRM
@@ -156,6 +167,30 @@ class Simulation:
         )
         self.log.add(record)
         return record
+
+    def _told(self, t: int) -> np.ndarray | None:
+        """``oracle`` (diagnostic, ours): the target's true position when the team is told it at
+        step ``t`` (on the first ``truth_after_hiding`` steps after an occlusion, or while a
+        ``follow_up`` runs), else None."""
+        oracle, truth = self.c.oracle, self.truth
+        if oracle is None or not truth.exists:
+            return None
+        after = any(b < t <= b + oracle.truth_after_hiding for _, b in self.c.target.occlusions)
+        following = self.follow > 0
+        self.follow = max(self.follow - 1, 0)
+        return truth.position.copy() if (after or following) else None
+
+    def _tell_after_update(self, t: int, detected: list[bool]) -> None:
+        """``oracle``, after the step's fusion: a detection after an occlusion starts a follow-up
+        (``follow_up``), and before an occlusion every working agent's particles are redrawn
+        tight around the true state (``state_before_hiding``), each filter keeping its existence."""
+        oracle, truth, occlusions = self.c.oracle, self.truth, self.c.target.occlusions
+        if oracle.follow_up and truth.detectable and any(detected) and any(b < t for _, b in occlusions):
+            self.follow = oracle.follow_up
+        if oracle.state_before_hiding and truth.exists and any(a == t + 1 for a, _ in occlusions):
+            for j in self.team.working():
+                f = self.team.agents[j].filter
+                f.reset_to(f.e, truth.state.copy(), TOLD_COV)
 
     def _transmit(self, levels: np.ndarray) -> Transmission:
         """Antennas point at the true target (`pointing: truth`, the paper) or at the aim, and

@@ -151,14 +151,18 @@ class Team:
         return self.inbox[j]
 
     def decide(self, displacements: np.ndarray, ant: AntennaModel, low: np.ndarray, high: np.ndarray,
-               plan: PlanSettings, actions=None) -> tuple[list[Decision], float]:
+               plan: PlanSettings, actions=None, told: np.ndarray | None = None) -> tuple[list[Decision], float]:
         """Round 2: every working agent plans and proposes; each applies the best plan it
-        received. ``actions`` (moves, levels) overrides the plans. Returns the decisions and the
-        wall time of planning."""
+        received. ``actions`` (moves, levels) overrides the plans. ``told`` (an oracle's, ours:
+        the target's true position) replaces every agent's x_bar, planned for at that point.
+        Returns the decisions and the wall time of planning."""
         t0 = time.perf_counter()
         working = self.working()
-        x_bars = {j: pursuit_aim([m.estimate for m in self.fresh(j)], np.array([m.position for m in self.fresh(j)]),
-                                 self.settings.aim, low, high) for j in working}
+        if told is not None:
+            x_bars = {j: np.array(told, dtype=float) for j in working}
+        else:
+            x_bars = {j: pursuit_aim([m.estimate for m in self.fresh(j)], np.array([m.position for m in self.fresh(j)]),
+                                     self.settings.aim, low, high) for j in working}
         decisions: list[Decision | None] = [None] * len(self.agents)
         for j in range(len(self.agents)):
             if j not in working:
@@ -169,7 +173,7 @@ class Team:
                 decisions[j] = Decision("external", int(moves[j]), int(levels[j]), x_bars[j], x_bars[j], np.nan,
                                         len(self.fresh(j)))
             return decisions, time.perf_counter() - t0
-        proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan, t0)
+        proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan, t0, told is not None)
         inboxes = self.exchange.send(self.t, "plan", [Message(p.sender, "plan", self.t, plan=p) for p in proposals])
         for j in working:
             best = adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
@@ -180,9 +184,10 @@ class Team:
         return decisions, time.perf_counter() - t0
 
     def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings,
-                   t0: float) -> list[Proposal]:
+                   t0: float, told: bool = False) -> list[Proposal]:
         """Each working agent's plan over the teammates it heard from this step. Agents holding
-        the same problem solve it together (deterministic solvers once; GRASP one search each)."""
+        the same problem solve it together (deterministic solvers once; GRASP one search each).
+        ``told``: x_bar is the true position, planned for at that point, never over the belief."""
         groups: dict[tuple, list[int]] = {}
         hover: list[Proposal] = []
         for j in working:
@@ -212,7 +217,7 @@ class Team:
             positions = np.array([m.position for m in heard] + [self.known[j0][k].position for k in guards])
             samples = weights = None
             n_detect = plan.at_least
-            if plan.belief_samples and wide_belief([m.estimate for m in heard], plan.belief_spread):
+            if plan.belief_samples and not told and wide_belief([m.estimate for m in heard], plan.belief_spread):
                 # tracking: the believers' predicted densities; searching: wherever the team's can be
                 sampled = [m.belief for m in heard if searching or m.estimate.existence > CONFIRM]
                 samples, weights = pooled_belief(sampled)
