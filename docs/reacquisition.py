@@ -1,8 +1,12 @@
-"""Draws docs/reacquisition.png: how often a team holds the target again after the Fig. 3
-occlusion, the preset `pursuit` against the oracles of docs/holding.md, with the Clopper-Pearson
-95 % intervals of the experiments' tables (``trackjam.experiments.summary.count_ci95``). The counts are those of docs/holding.md's tables (patched runs; the oracles are not
-options). Run: python docs/reacquisition.py"""
+"""Draws docs/reacquisition.png from a run of `trackjam experiment oracles`: how often the preset
+`pursuit` holds the target again after the Fig. 3 occlusion, beside the same preset told what
+no real team knows (``oracle.*``), with each row's Clopper-Pearson 95 % interval (summary.csv)
+and its sign test against the preset (paired.csv), and the issue's 40 % line.
 
+Run: python docs/reacquisition.py [OUT]   (OUT: the experiment's folder, by default
+runs/experiment-oracles; the figure is written beside this script)"""
+
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -11,48 +15,39 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from trackjam.experiments.summary import count_ci95  # noqa: E402
+from trackjam.experiments.summary import read_table  # noqa: E402
 
-# (label, seeds re-acquired, seeds run, kind); kind: the preset, an oracle or the issue's target
-ROWS = [
-    ("the preset, seeds 1-600", 166, 600, "preset"),
-    ("its particles at step 13 redrawn tight\naround its own mean", 183, 600, "oracle"),
-    ("... shifted so that their mean is\nthe true state", 200, 600, "oracle"),
-    ("... redrawn tight around the true state", 251, 600, "oracle"),
-    ("the preset, seeds 101-200", 31, 100, "preset"),
-    ("after any detection from step 18 on,\nit plans at the truth for 3 steps", 39, 100, "oracle"),
-    ("its filter told that the occluded\nscans carry no target", 41, 100, "oracle"),
-    ("an earlier preset, seeds 101-200", 18, 100, "preset"),
-    ("it plans at the truth at step 18\n(the target reappears)", 41, 100, "oracle"),
-    ("... at steps 18-20", 52, 100, "oracle"),
-]
 TARGET = 0.40  # the issue's 8 of 20
 
 
-def share_ci95(k: int, n: int) -> tuple[float, float]:
-    """The Clopper-Pearson 95 % interval on k / n, as the experiments' tables give it."""
-    _, _, lo, hi = count_ci95([1] * k + [0] * (n - k))
-    return lo, hi
-
-
-def main(out: Path = Path(__file__).with_name("reacquisition.png")) -> None:
-    fig, ax = plt.subplots(figsize=(8.0, 5.4), layout="constrained")
-    y = np.arange(len(ROWS))[::-1]
-    for yi, (label, k, n, kind) in zip(y, ROWS):
-        lo, hi = share_ci95(k, n)
-        colour = "tab:blue" if kind == "preset" else "tab:gray"
-        ax.barh(yi, k / n, color=colour, alpha=0.8)
-        ax.errorbar(k / n, yi, xerr=[[k / n - lo], [hi - k / n]], color="black", capsize=3, lw=1)
-        ax.text(hi + 0.01, yi, f"{k} of {n}", va="center", fontsize=8)
+def main(folder: Path = Path("runs/experiment-oracles"), out: Path = Path(__file__).with_name("reacquisition.png")) -> None:
+    rows = read_table(folder / "summary.csv")
+    p_of = {int(r["b"]): r for r in read_table(folder / "paired.csv")}
+    fig, ax = plt.subplots(figsize=(8.0, 0.55 * len(rows) + 1.6), layout="constrained")
+    y = np.arange(len(rows))[::-1]
+    for yi, r in zip(y, rows):
+        k, n = int(r["reacquired"]), int(r["reacquired_of"])
+        share, lo, hi = k / n, float(r["reacquired_lo"]), float(r["reacquired_hi"])
+        preset = int(r["config"]) == 1
+        ax.barh(yi, share, color="tab:blue" if preset else "tab:gray", alpha=0.8)
+        ax.errorbar(share, yi, xerr=[[share - lo], [hi - share]], color="black", capsize=3, lw=1)
+        note = f"{k} of {n}"
+        if not preset:
+            pair = p_of[int(r["config"])]
+            p = pair["reacquired_p"]
+            note += f"; +{pair['reacquired_gained']} / -{pair['reacquired_lost']}, p = " + (f"{float(p):.1g}" if p else "-")
+        ax.text(hi + 0.01, yi, note, va="center", fontsize=8)
     ax.axvline(TARGET, color="tab:red", ls="--", lw=1)
-    ax.text(TARGET + 0.005, y[0] + 0.55, "issue's target (8 of 20)", color="tab:red", fontsize=8)
-    ax.set_yticks(y, [r[0] for r in ROWS], fontsize=8)
-    ax.set_xlim(0, 0.7)
-    ax.set_xlabel("share of seeds held again after the occlusion (Clopper-Pearson 95 % interval)")
-    ax.set_title("Re-acquisition after the Fig. 3 occlusion: the preset and what the oracles are told", fontsize=10)
+    ax.text(TARGET + 0.005, y[0] + 0.5, "issue's target (8 of 20)", color="tab:red", fontsize=8)
+    ax.set_yticks(y, [r["label"] for r in rows], fontsize=8)
+    ax.set_xlim(0, min(1.0, max(float(r["reacquired_hi"]) for r in rows) + 0.3))
+    ax.set_xlabel("share of trials held again after the occlusion (Clopper-Pearson 95 %)\n"
+                  "beside each oracle: trials gained / lost against the preset, and the sign test's p")
+    ax.set_title(f"Re-acquisition after the Fig. 3 occlusion: the preset and its oracles "
+                 f"(trackjam experiment oracles, {rows[0]['trials']} trials)", fontsize=10)
     fig.savefig(out, dpi=110)
     print(out)
 
 
 if __name__ == "__main__":
-    main()
+    main(*(Path(a) for a in sys.argv[1:2]))

@@ -185,6 +185,15 @@ def _against(reference: int, rows: tuple[tuple[str, dict[str, Any]], ...]) -> li
     return [(reference, i, f"{ref} -> {label}") for i, (label, _) in enumerate(rows, start=1) if i != reference]
 
 
+def _on_fig3(name: str, description: str, rows: tuple[tuple[str, dict[str, Any]], ...], pairs,
+             settings: dict[str, Any] | None = None) -> Experiment:
+    """An experiment of ours on Fig. 3 itself (SEED trials, the exact solver and ``settings``),
+    one configuration per row, with the track quality, re-acquisition and the figure of `holding`."""
+    return Experiment(name, description, _variants(rows), f"{name}.png", panels=HOLDING_PANELS,
+                      metrics=HOLDING_METRICS, counts=COUNTS, trials=SEED,
+                      base_settings={"control.solver": "exact", **(settings or {})}, pairs=tuple(pairs))
+
+
 EXPERIMENTS: dict[str, Experiment] = {
     "table1": _table1(),
     "constraints": Experiment(
@@ -210,42 +219,20 @@ EXPERIMENTS: dict[str, Experiment] = {
         counts=COUNTS,
         pairs=((1, 2, "grasp -> exact"),),
     ),
-    "holding": Experiment(
-        "holding",
-        "ours: holding the target on Fig. 3 (exact solver), judged by the truth",
-        _variants(HOLDING_VARIANTS),
-        "holding.png",
-        panels=HOLDING_PANELS,
-        metrics=HOLDING_METRICS,
-        counts=COUNTS,
-        trials=SEED,
-        base_settings={"control.solver": "exact"},
+    "holding": _on_fig3(
+        "holding", "ours: holding the target on Fig. 3 (exact solver), judged by the truth", HOLDING_VARIANTS,
         # every row against the paper's team with aim pointing; the preset against pointing: truth
-        pairs=(*_against(2, HOLDING_VARIANTS), (1, len(HOLDING_VARIANTS), "paper, pointing: truth -> preset pursuit")),
+        (*_against(2, HOLDING_VARIANTS), (1, len(HOLDING_VARIANTS), "paper, pointing: truth -> preset pursuit")),
     ),
-    "comms": Experiment(
-        "comms",
-        "ours: the distributed team on Fig. 3 (exact, pointing: aim) under message faults",
-        _variants(COMMS_VARIANTS),
-        "comms.png",
-        panels=HOLDING_PANELS,
-        metrics=HOLDING_METRICS,
-        counts=COUNTS,
-        trials=SEED,
-        base_settings={"control.solver": "exact", "antenna.pointing": "aim"},
-        pairs=tuple(_against(1, COMMS_VARIANTS)),  # every fault against the faultless team
+    "comms": _on_fig3(
+        "comms", "ours: the distributed team on Fig. 3 (exact, pointing: aim) under message faults", COMMS_VARIANTS,
+        _against(1, COMMS_VARIANTS),  # every fault against the faultless team
+        {"antenna.pointing": "aim"},
     ),
-    "oracles": Experiment(
+    "oracles": _on_fig3(
         "oracles",
         "ours: what the preset pursuit would re-acquire after the Fig. 3 occlusion if told what no real team knows",
-        _variants(ORACLE_VARIANTS),
-        "oracles.png",
-        panels=HOLDING_PANELS,
-        metrics=HOLDING_METRICS,
-        counts=COUNTS,
-        trials=SEED,
-        base_settings={"control.solver": "exact"},
-        pairs=tuple(_against(1, ORACLE_VARIANTS)),  # every oracle against the preset
+        ORACLE_VARIANTS, _against(1, ORACLE_VARIANTS),  # every oracle against the preset
     ),
 }
 

@@ -4,6 +4,11 @@ One step, in the order of the paper's Fig. 2, each stage one call into the packa
 the truth moves -> each agent predicts and the team exchanges predictions -> the team plans
 (or takes the given actions) -> agents move and transmit -> each agent receives its scan and
 updates its filter -> the team exchanges and fuses posteriors -> the step is measured.
+
+The diagnostic ``oracle`` section (ours, off by default) tells the team what no real team
+knows, at the two points where it could: the true position in place of x_bar when the team
+plans, and, after the fusion, the true state in every filter before an occlusion; it can also
+have the filters weigh an occluded step's scans as if every antenna were off.
 """
 
 from __future__ import annotations
@@ -173,12 +178,12 @@ class Simulation:
         step ``t`` (on the first ``truth_after_hiding`` steps after an occlusion, or while a
         ``follow_up`` runs), else None."""
         oracle, truth = self.c.oracle, self.truth
-        if oracle is None or not truth.exists:
+        if oracle is None:
             return None
-        after = any(b < t <= b + oracle.truth_after_hiding for _, b in self.c.target.occlusions)
-        following = self.follow > 0
+        following = self.follow > 0  # a follow-up's steps run out whether or not the target is there
         self.follow = max(self.follow - 1, 0)
-        return truth.position.copy() if (after or following) else None
+        after = any(b < t <= b + oracle.truth_after_hiding for _, b in self.c.target.occlusions)
+        return truth.position.copy() if truth.exists and (after or following) else None
 
     def _tell_after_update(self, t: int, detected: list[bool]) -> None:
         """``oracle``, after the step's fusion: a detection after an occlusion starts a follow-up
