@@ -356,6 +356,7 @@ def test_the_experiment_prints_its_paired_comparisons_marking_the_significant_on
     assert f"paired, b - a: mean ± 95% CI over the same trials, * significant ({out / 'paired.csv'})" in r.output
     row = next(csv.DictReader(open(out / "paired.csv")))
     assert (row["a"], row["b"], row["label"], row["trials"]) == ("1", "2", "constraints on -> off", "3")
+    assert "gained/lost" not in r.output  # no trial has a hidden spell: no re-acquisition to pair
     line = next(x for x in r.output.splitlines() if "constraints on -> off" in x and "│" in x)
     cells = [c.strip() for c in line.strip("│ ").split("│")]
     diff, ci = float(row["incidents_diff"]), float(row["incidents_ci95"])

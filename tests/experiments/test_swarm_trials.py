@@ -63,7 +63,7 @@ def test_a_bad_grid_is_one_line_naming_the_option(text, words):
 def test_only_the_swarm_experiment_takes_a_grid():
     with pytest.raises(ConfigError, match="--grid: experiment table1 has no grid"):
         get_experiment("table1", "1x3")
-    with pytest.raises(ConfigError, match="table1, constraints, solvers, holding, comms, swarm"):
+    with pytest.raises(ConfigError, match="table1, constraints, solvers, holding, comms, oracles, swarm"):
         get_experiment("swarm3")
 
 

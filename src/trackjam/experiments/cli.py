@@ -65,7 +65,9 @@ def experiment_command(
     console.print(table)
     if result.paired:
         if len(result.paired) <= MAX_PAIRS_SHOWN:
-            console.print(paired_table(result, experiment.metrics, units, experiment.counts))
+            # a count that applies to no trial (no hidden spell in the paper's draw) gets no column
+            applying = tuple(c for c in experiment.counts if any(row[f"{c[0]}_of"] for row in result.summary))
+            console.print(paired_table(result, experiment.metrics, units, applying))
         else:
             print(f"{len(result.paired)} paired comparisons in {result.out / 'paired.csv'}")
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
