@@ -52,6 +52,32 @@ def test_state_before_hiding_redraws_every_filter_tight_around_the_truth():
         assert np.abs(b.filter.particles.mean(axis=0) - x).max() > 0.05  # the team alone knows less
 
 
+def weighted_moments(f):
+    X, log_w = f.particles, f.log_w
+    w = np.exp(log_w - log_w.max())
+    w /= w.sum()
+    mean = w @ X
+    return mean, np.sqrt(w @ (X - mean) ** 2)
+
+
+def test_mean_before_hiding_moves_every_belief_onto_the_truth_keeping_its_spread():
+    sim = Simulation(scenario("oracle.mean_before_hiding=true"))
+    plain = Simulation(scenario())
+    for _ in range(3):
+        sim.step()
+        plain.step()
+    x = sim.truth.state
+    for a, b in zip(sim.team.agents, plain.team.agents):
+        mean, spread = weighted_moments(a.filter)
+        plain_mean, plain_spread = weighted_moments(b.filter)
+        assert np.allclose(mean, x, atol=1e-9)
+        assert np.allclose(spread, plain_spread, rtol=1e-9)  # the same belief, centred elsewhere
+        assert np.abs(plain_mean - x).max() > 0.05
+        # the estimate (at the mode, in the preset) moves by the same offset; the existence stays
+        assert np.allclose(a.filter.estimate().mean - b.filter.estimate().mean, x - plain_mean, atol=1e-9)
+        assert a.filter.e == b.filter.e
+
+
 @pytest.mark.parametrize("k", [1, 3])
 def test_truth_after_hiding_tells_the_first_k_steps_after_the_occlusion(k):
     result = simulate(scenario(f"oracle.truth_after_hiding={k}"))

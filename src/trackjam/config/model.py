@@ -609,6 +609,11 @@ class Oracle(_Model):
         False, description="after the last step before each occlusion, every agent's particles are redrawn tight "
         "around the target's true state (0.3 m and 0.1 m/s per axis), its existence kept",
     )
+    mean_before_hiding: StrictBool = Field(
+        False, description="after the last step before each occlusion, every agent's particles are moved by one offset "
+        "so that their weighted mean is the target's true state, their spread and shape kept (a filter whose mean "
+        "is exact)",
+    )
     truth_after_hiding: Integer(0, MAX_STEPS) = Field(
         0, description="on the first k steps after each occlusion the team plans (and with `antenna.pointing: aim` "
         f"points) at the target's true position, at that point rather than over its belief; 0: never, in [0, {MAX_STEPS}]",

@@ -645,6 +645,19 @@ class BernoulliFilter:
         else:
             self._last = Estimate(self.e, self._last.mean, self._last.cov)
 
+    def shift_to(self, mean: np.ndarray) -> None:
+        """Move every particle of the surviving density (:attr:`particles`, the young component's
+        included) by one offset, so that their weighted mean is ``mean``: the belief keeps its
+        spread and shape and is centred elsewhere (``oracle.mean_before_hiding``, a diagnostic).
+        Called after ``update()``."""
+        X, log_w = self._survivors()
+        w = np.exp(log_w - log_w.max())
+        offset = np.asarray(mean, dtype=float) - (w / w.sum()) @ X
+        self._X = self._X + offset
+        if self._young is not None:
+            self._young = replace(self._young, X=self._young.X + offset)
+        self._last = Estimate(self._last.existence, self._last.mean + offset, self._last.cov)
+
     def note_jamming(self, positions: np.ndarray, points: np.ndarray, levels_w: np.ndarray) -> None:
         """``filter.response``, after the step's update (and fusion): count the step as jammed
         when the team's cones (senders at ``positions`` aimed at ``points`` with ``levels_w``)

@@ -163,6 +163,7 @@ ORACLE_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("told where it is on 3 steps after it reappears", {**PURSUIT_SETTINGS, "oracle.truth_after_hiding": 3}),
     ("told where it is on 3 steps after each detection", {**PURSUIT_SETTINGS, "oracle.follow_up": 3}),
     ("filters told the hidden scans are empty", {**PURSUIT_SETTINGS, "oracle.empty_hidden_scans": True}),
+    ("filters' mean moved onto the true state before it hides", {**PURSUIT_SETTINGS, "oracle.mean_before_hiding": True}),
 )
 
 # The rows of `comms`: the fault model of the distributed team, one fault at a time.

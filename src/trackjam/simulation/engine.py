@@ -7,8 +7,9 @@ updates its filter -> the team exchanges and fuses posteriors -> the step is mea
 
 The diagnostic ``oracle`` section (ours, off by default) tells the team what no real team
 knows, at the two points where it could: the true position in place of x_bar when the team
-plans, and, after the fusion, the true state in every filter before an occlusion; it can also
-have the filters weigh an occluded step's scans as if every antenna were off.
+plans, and, after the fusion, the true state (or only the mean) in every filter before an
+occlusion; it can also have the filters weigh an occluded step's scans as if every antenna
+were off.
 """
 
 from __future__ import annotations
@@ -188,14 +189,18 @@ class Simulation:
     def _tell_after_update(self, t: int, detected: list[bool]) -> None:
         """``oracle``, after the step's fusion: a detection after an occlusion starts a follow-up
         (``follow_up``), and before an occlusion every working agent's particles are redrawn
-        tight around the true state (``state_before_hiding``), each filter keeping its existence."""
+        tight around the true state (``state_before_hiding``) or moved so that their mean is
+        the true state (``mean_before_hiding``), each filter keeping its existence."""
         oracle, truth, occlusions = self.c.oracle, self.truth, self.c.target.occlusions
         if oracle.follow_up and truth.detectable and any(detected) and any(b < t for _, b in occlusions):
             self.follow = oracle.follow_up
-        if oracle.state_before_hiding and truth.exists and any(a == t + 1 for a, _ in occlusions):
+        if truth.exists and any(a == t + 1 for a, _ in occlusions):
             for j in self.team.working():
                 f = self.team.agents[j].filter
-                f.reset_to(f.e, truth.state.copy(), TOLD_COV)
+                if oracle.state_before_hiding:
+                    f.reset_to(f.e, truth.state.copy(), TOLD_COV)
+                elif oracle.mean_before_hiding:
+                    f.shift_to(truth.state)
 
     def _transmit(self, levels: np.ndarray) -> Transmission:
         """Antennas point at the true target (`pointing: truth`, the paper) or at the aim, and
