@@ -23,7 +23,7 @@ TARGET = 0.40  # the issue's 8 of 20
 def main(folder: Path = Path("runs/experiment-oracles"), out: Path = Path(__file__).with_name("reacquisition.png")) -> None:
     rows = read_table(folder / "summary.csv")
     p_of = {int(r["b"]): r for r in read_table(folder / "paired.csv")}
-    fig, ax = plt.subplots(figsize=(8.0, 0.55 * len(rows) + 1.6), layout="constrained")
+    fig, ax = plt.subplots(figsize=(10.0, 0.55 * len(rows) + 1.8), layout="constrained")
     y = np.arange(len(rows))[::-1]
     for yi, r in zip(y, rows):
         k, n = int(r["reacquired"]), int(r["reacquired_of"])
@@ -40,11 +40,11 @@ def main(folder: Path = Path("runs/experiment-oracles"), out: Path = Path(__file
     ax.axvline(TARGET, color="tab:red", ls="--", lw=1)
     ax.text(TARGET + 0.005, y[0] + 0.5, "issue's target (8 of 20)", color="tab:red", fontsize=8)
     ax.set_yticks(y, [r["label"] for r in rows], fontsize=8)
-    ax.set_xlim(0, min(1.0, max(float(r["reacquired_hi"]) for r in rows) + 0.3))
+    ax.set_xlim(0, min(1.0, max(float(r["reacquired_hi"]) for r in rows) + 0.38))
     ax.set_xlabel("share of trials held again after the occlusion (Clopper-Pearson 95 %)\n"
                   "beside each oracle: trials gained / lost against the preset, and the sign test's p")
-    ax.set_title(f"Re-acquisition after the Fig. 3 occlusion: the preset and its oracles "
-                 f"(trackjam experiment oracles, {rows[0]['trials']} trials)", fontsize=10)
+    ax.set_title(f"Re-acquisition after the Fig. 3 occlusion: the preset and its oracles ({rows[0]['trials']} trials)",
+                 fontsize=10)
     fig.savefig(out, dpi=110)
     print(out)
 
