@@ -74,7 +74,7 @@ def test_each_oracle_row_is_the_preset_and_one_oracle():
         assert (s.oracle is None) == (configuration.index == 1)
         assert s.antenna.pointing == "aim" and s.control.solver == "exact"
     assert seen == {"oracle.state_before_hiding", "oracle.truth_after_hiding", "oracle.follow_up",
-                    "oracle.empty_hidden_scans", "oracle.mean_before_hiding"}
+                    "oracle.empty_hidden_scans", "oracle.mean_before_hiding", "oracle.point_after_hiding"}
     assert experiment.pairs == tuple((1, c.index, f"preset pursuit -> {c.label}")
                                      for c in experiment.configurations[1:])
 

@@ -85,6 +85,20 @@ def test_truth_after_hiding_tells_the_first_k_steps_after_the_occlusion(k):
     assert set(result.steps["mode"][5:5 + k]) == {"track"}  # planned at the point, as a located target
 
 
+@pytest.mark.parametrize("k", [1, 2])
+def test_point_after_hiding_points_every_antenna_at_the_truth_on_the_first_k_steps(k):
+    told, plain = simulate(scenario(f"oracle.point_after_hiding={k}")), simulate(scenario())
+    a, s = told.agents, told.steps
+    truth = {int(t): np.array([x, y, z]) for t, x, y, z in zip(s["t"], s["truth_x"], s["truth_y"], s["truth_z"])}
+    pointed = {int(t) for t in set(a["t"].tolist())
+               if all(np.array_equal(p, truth[int(t)])
+                      for p in np.c_[a["point_x"], a["point_y"], a["point_z"]][a["t"] == t])}
+    assert pointed == set(range(6, 6 + k))
+    before = a["t"] <= 5  # the same run until the occlusion ends: the plans are not told anything
+    assert np.array_equal(a["x"][before], plain.agents["x"][before])
+    assert told_steps(told) == set()
+
+
 def test_follow_up_tells_the_steps_after_each_detection_after_the_occlusion():
     followed = 0
     for seed in (1, 2, 3, 4, 5, 6):

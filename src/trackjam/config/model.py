@@ -618,6 +618,10 @@ class Oracle(_Model):
         0, description="on the first k steps after each occlusion the team plans (and with `antenna.pointing: aim` "
         f"points) at the target's true position, at that point rather than over its belief; 0: never, in [0, {MAX_STEPS}]",
     )
+    point_after_hiding: Integer(0, MAX_STEPS) = Field(
+        0, description="on the first k steps after each occlusion every antenna points at the target's true position "
+        f"(as `antenna.pointing: truth`), while the team plans as it would; 0: never, in [0, {MAX_STEPS}]",
+    )
     follow_up: Integer(0, MAX_STEPS) = Field(
         0, description="after any agent detects the target on a step after an occlusion, the team plans (and points) "
         f"at its true position on the next k steps; 0: never, in [0, {MAX_STEPS}]",

@@ -164,6 +164,7 @@ ORACLE_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("told where it is on 3 steps after each detection", {**PURSUIT_SETTINGS, "oracle.follow_up": 3}),
     ("filters told the hidden scans are empty", {**PURSUIT_SETTINGS, "oracle.empty_hidden_scans": True}),
     ("filters' mean moved onto the true state before it hides", {**PURSUIT_SETTINGS, "oracle.mean_before_hiding": True}),
+    ("antennas pointed at it on 1 step after it reappears", {**PURSUIT_SETTINGS, "oracle.point_after_hiding": 1}),
 )
 
 # The rows of `comms`: the fault model of the distributed team, one fault at a time.

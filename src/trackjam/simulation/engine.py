@@ -8,8 +8,8 @@ updates its filter -> the team exchanges and fuses posteriors -> the step is mea
 The diagnostic ``oracle`` section (ours, off by default) tells the team what no real team
 knows, at the two points where it could: the true position in place of x_bar when the team
 plans, and, after the fusion, the true state (or only the mean) in every filter before an
-occlusion; it can also have the filters weigh an occluded step's scans as if every antenna
-were off.
+occlusion; it can also point the antennas at the truth for some steps, or have the filters
+weigh an occluded step's scans as if every antenna were off.
 """
 
 from __future__ import annotations
@@ -210,7 +210,8 @@ class Simulation:
         n = len(team.agents)
         x_true = truth.position
         positions = team.positions
-        if c.pointing == "truth" and x_true is not None:
+        told = c.oracle is not None and any(b < self.t <= b + c.oracle.point_after_hiding for _, b in c.target.occlusions)
+        if (c.pointing == "truth" or told) and x_true is not None:
             points = np.repeat(x_true[None, :], n, axis=0)
         else:
             points = team.aims
