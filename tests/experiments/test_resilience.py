@@ -363,10 +363,16 @@ def _alive(pids: set[int]) -> set[int]:
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
     out = tmp_path / "sweep"
-    proc = start(["-m", "sweep_helpers", "constraints", str(out), "2", "4"], env={**ENV, "TRACKJAM_FAKE_SLEEP": "1"})
+    # 2 x 12 trials of 1 s on 2 workers: about 12 s of sweep left when the first file is in, so a
+    # test process that the loaded machine stalls for a few seconds still signals a running sweep
+    # (with 2 x 4 trials, a CI run once signalled a sweep that had already finished: exit status 0)
+    trials = 12
+    proc = start(["-m", "sweep_helpers", "constraints", str(out), "2", str(trials)],
+                 env={**ENV, "TRACKJAM_FAKE_SLEEP": "1"})
     workers: set[int] = set()
     try:
         wait_for_files(out / "trials", 1, proc, limit_s=120)
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
         workers = _children(proc.pid)
         assert len(workers) >= 2  # the pool's two workers (and multiprocessing's helper)
         os.kill(proc.pid, sig)
@@ -384,9 +390,9 @@ def test_killing_a_sweep_leaves_no_worker_behind(sig, tmp_path):
     # whatever was written is whole, and the sweep resumes to the uninterrupted result
     kept = list((out / "trials").glob("c*.parquet"))
     assert all(pq.read_table(p).num_rows == 1 for p in kept)
-    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trials": 4})
-    fresh = run_experiment("constraints", workers=1, out=tmp_path / "fresh", **{**SWEEP, "trials": 4})
-    assert r.notes == [] and r.ran == 8 - len(kept) and r.summary == fresh.summary
+    r = run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trials": trials})
+    fresh = run_experiment("constraints", workers=1, out=tmp_path / "fresh", **{**SWEEP, "trials": trials})
+    assert r.notes == [] and r.ran == 2 * trials - len(kept) and r.summary == fresh.summary
 
 
 def test_a_scheduler_without_workers_is_said_not_waited_on_in_silence(capsys, monkeypatch):
