@@ -90,3 +90,31 @@ def test_the_docs_name_every_option_the_swarm_engine_refuses():
     guide = guide.split("Options the swarm engine\ndoes not simulate yet", 1)[1].split("\n\n", 1)[0]
     assert [k for k in keys if f"`{k}" not in readme] == []
     assert [k for k in keys if f"`{k}" not in guide and not (k.startswith("comms.") and "`comms` faults" in guide)] == []
+
+
+def test_the_reacquisition_figure_is_drawn_from_the_committed_oracles_run(tmp_path, monkeypatch):
+    """docs/reacquisition.py reads the oracles experiment's summary.csv and paired.csv (the
+    committed run in docs/experiments/oracles) and draws one bar per row."""
+    import importlib.util
+
+    import matplotlib.pyplot as plt
+
+    from trackjam.experiments.definitions import ORACLE_VARIANTS
+    from trackjam.experiments.summary import read_table
+
+    folder = ROOT / "docs" / "experiments" / "oracles"
+    assert [r["label"] for r in read_table(folder / "summary.csv")] == [label for label, _ in ORACLE_VARIANTS]
+    spec = importlib.util.spec_from_file_location("reacquisition", ROOT / "docs" / "reacquisition.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    drawn = []
+    real_savefig = plt.Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        drawn.append(len(fig.axes[0].patches))  # the bars
+        return real_savefig(fig, *args, **kwargs)
+
+    monkeypatch.setattr(plt.Figure, "savefig", keep)
+    module.main(folder, tmp_path / "reacquisition.png")
+    assert drawn == [len(ORACLE_VARIANTS)]
+    assert (tmp_path / "reacquisition.png").stat().st_size > 10_000
