@@ -130,6 +130,9 @@ def preset_settings(name: str) -> dict[str, Any]:
     return {k: v for k, v in mine.items() if k not in ("name", "seed", "steps") and base.get(k, object()) != v}
 
 
+# The preset `pursuit` as settings on the base preset: the last row of `holding`, the first of `oracles`
+PURSUIT_SETTINGS = preset_settings("pursuit")
+
 # The rows of `holding`, in order: (label, dotted keys). The paper's behaviour with the paper's
 # idealised pointing and with the pointing a real team has, then each option beyond the paper
 # alone on top of `pointing: aim`.
@@ -150,12 +153,11 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("aim + estimate at the mode", {"antenna.pointing": "aim", "filter.mode": {"radius": 5.0, "mass": 0.2}}),
     ("aim + plan over the belief while it spreads > 8 m", {"antenna.pointing": "aim", "control.plan_over": "belief",
                                                            "control.belief_spread": 8.0}),
-    ("preset pursuit", preset_settings("pursuit")),
+    ("preset pursuit", PURSUIT_SETTINGS),
 )
 
 # The rows of `oracles`: the preset, then the preset told what no real team knows (oracle.*,
 # diagnostic), each measuring what that knowledge is worth to re-acquisition after the occlusion.
-PURSUIT_SETTINGS = HOLDING_VARIANTS[-1][1]
 ORACLE_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("preset pursuit", PURSUIT_SETTINGS),
     ("told the true state before it hides", {**PURSUIT_SETTINGS, "oracle.state_before_hiding": True}),

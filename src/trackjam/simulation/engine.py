@@ -139,8 +139,9 @@ class Simulation:
         truth.apply_jamming(t, float(tx.to_target_w.sum()))
         scans = self._scans(tx)
         oracle = c.oracle
-        hidden = truth.exists and any(a <= t <= b for a, b in c.target.occlusions)
-        weighed_w = tx.level_w * 0.0 if oracle is not None and oracle.empty_hidden_scans and hidden else tx.level_w
+        weighed_w = tx.level_w
+        if oracle is not None and oracle.empty_hidden_scans and truth.exists and not truth.detectable:  # occluded
+            weighed_w = np.zeros_like(tx.level_w)
         posteriors = team.update([Z for Z, _ in scans], tx.points, weighed_w)
         fused = team.fuse(posteriors)
         team.note_jamming(tx.points, tx.level_w)
@@ -183,8 +184,12 @@ class Simulation:
             return None
         following = self.follow > 0  # a follow-up's steps run out whether or not the target is there
         self.follow = max(self.follow - 1, 0)
-        after = any(b < t <= b + oracle.truth_after_hiding for _, b in self.c.target.occlusions)
+        after = self._just_after_hiding(t, oracle.truth_after_hiding)
         return truth.position.copy() if truth.exists and (after or following) else None
+
+    def _just_after_hiding(self, t: int, k: int) -> bool:
+        """Step ``t`` is one of the first ``k`` steps after an occlusion ends."""
+        return any(b < t <= b + k for _, b in self.c.target.occlusions)
 
     def _tell_after_update(self, t: int, detected: list[bool]) -> None:
         """``oracle``, after the step's fusion: a detection after an occlusion starts a follow-up
@@ -194,7 +199,8 @@ class Simulation:
         oracle, truth, occlusions = self.c.oracle, self.truth, self.c.target.occlusions
         if oracle.follow_up and truth.detectable and any(detected) and any(b < t for _, b in occlusions):
             self.follow = oracle.follow_up
-        if truth.exists and any(a == t + 1 for a, _ in occlusions):
+        told_state = oracle.state_before_hiding or oracle.mean_before_hiding
+        if told_state and truth.exists and any(a == t + 1 for a, _ in occlusions):
             for j in self.team.working():
                 f = self.team.agents[j].filter
                 if oracle.state_before_hiding:
@@ -210,7 +216,7 @@ class Simulation:
         n = len(team.agents)
         x_true = truth.position
         positions = team.positions
-        told = c.oracle is not None and any(b < self.t <= b + c.oracle.point_after_hiding for _, b in c.target.occlusions)
+        told = c.oracle is not None and self._just_after_hiding(self.t, c.oracle.point_after_hiding)
         if (c.pointing == "truth" or told) and x_true is not None:
             points = np.repeat(x_true[None, :], n, axis=0)
         else:
