@@ -118,3 +118,39 @@ def test_the_reacquisition_figure_is_drawn_from_the_committed_oracles_run(tmp_pa
     module.main(folder, tmp_path / "reacquisition.png")
     assert drawn == [len(ORACLE_VARIANTS)]
     assert (tmp_path / "reacquisition.png").stat().st_size > 10_000
+
+
+def test_the_search_reference_runs_on_a_seed_and_its_figure_is_drawn_from_the_committed_table(tmp_path, monkeypatch):
+    """docs/search_ceiling.py: one seed's row (the team's run and the four searchers, small), and
+    the figure from the committed docs/experiments/search/first_detection.csv, one curve per
+    searcher and the team."""
+    import importlib.util
+
+    import matplotlib.pyplot as plt
+
+    spec = importlib.util.spec_from_file_location("search_ceiling", ROOT / "docs" / "search_ceiling.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    monkeypatch.setattr(module, "PARTICLES", 100)
+    monkeypatch.setattr(module, "ITERATIONS", 10)
+    row = module.one(3)
+    assert set(row) == set(module.COLUMNS) and row["last_seen"] == 13
+    for v in ("team", *module.VARIANTS):
+        assert row[f"{v}_first"] is None or 18 <= row[f"{v}_first"] <= 30
+        assert 0.0 <= row[f"{v}_chance"] <= 1.0
+    table = ROOT / "docs" / "experiments" / "search" / "first_detection.csv"
+    rows = module.read(table)
+    assert len(rows) >= 300 and [int(r["seed"]) for r in rows] == list(range(1, len(rows) + 1))
+    drawn = []
+    real_savefig = plt.Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        drawn.append(len(fig.axes[0].lines))
+        return real_savefig(fig, *args, **kwargs)
+
+    monkeypatch.setattr(plt.Figure, "savefig", keep)
+    module.figure(table, tmp_path / "search.png")
+    assert drawn == [1 + len(module.VARIANTS) + 2]  # the team, the searchers, and the two levels
+    assert (tmp_path / "search.png").stat().st_size > 10_000
+    lines = module.summary(rows)
+    assert lines[0].startswith("team: ") and len(lines) == 2 + len(module.VARIANTS)
