@@ -150,7 +150,12 @@ def test_the_search_reference_runs_on_a_seed_and_its_figure_is_drawn_from_the_co
 
     monkeypatch.setattr(plt.Figure, "savefig", keep)
     module.figure(table, tmp_path / "search.png")
-    assert drawn == [1 + len(module.VARIANTS) + 2]  # the team, the searchers, and the two levels
+    assert drawn == [1 + len(module.VARIANTS) + 1 + 2]  # the team, the searchers, the team-like one, two levels
     assert (tmp_path / "search.png").stat().st_size > 10_000
     lines = module.summary(rows)
     assert lines[0].startswith("team: ") and len(lines) == 2 + len(module.VARIANTS)
+    ablations = module.read(module.ABLATION_TABLE)  # the same seeds and the same team, the searcher weakened
+    assert [r["seed"] for r in ablations] == [r["seed"] for r in rows]
+    assert [r["team_first"] for r in ablations] == [r["team_first"] for r in rows]
+    assert list(ablations[0]) == list(module.columns(module.ABLATIONS))
+    assert len(module.summary(ablations, module.ABLATIONS)) == 2 + len(module.ABLATIONS)
