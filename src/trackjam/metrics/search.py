@@ -6,8 +6,12 @@ team search? This searcher is given every advantage a real team lacks but the on
 where the target is:
 
 - its agents are not bound by their moves: before each step they are put wherever they serve
-  best, each with its antenna aimed anywhere, at the top power level, with no interference limit;
-- it knows when the occlusion ends and searches only on the steps the target can be detected;
+  best, each with its antenna aimed anywhere, at the top power level, with no interference limit
+  (with ``positions`` and ``reach`` they start where the team's agents stood and move at most
+  ``reach`` a step, as the agents can);
+- it knows when the occlusion ends and searches only on the steps the target can be detected
+  (``knows_hidden=False`` takes that away, and ``aims_free=False`` aims every antenna at its
+  belief's mean, as a team's under ``antenna.pointing: aim``);
 - its belief is exact Bayes for what it is told at the last step before the occlusion: a state
   drawn from N(truth, diag(sd_p^2 I3, sd_v^2 I3)) with that covariance (``sd = (0, 0)``: the true
   state), moved by Eq. (1) and the walls, and weighed after each step by the chance that every
