@@ -60,7 +60,6 @@ COLUMNS = columns(VARIANTS)
 
 def one(seed: int, variants: tuple[str, ...] = VARIANTS) -> dict:
     """One seed's row: the team's run and each of ``variants``' searches on its truth."""
-    os.environ["NUMBA_NUM_THREADS"] = "1"
     from trackjam.config.loading import load_scenario
     from trackjam.metrics.search import kalman_floor, search_after
     from trackjam.simulation.build import build
@@ -103,13 +102,18 @@ def one(seed: int, variants: tuple[str, ...] = VARIANTS) -> dict:
     return row
 
 
+def one_thread() -> None:
+    """A worker's numba runs on one thread (set before it is first imported there)."""
+    os.environ["NUMBA_NUM_THREADS"] = "1"
+
+
 def first_searched(detectable: list[bool], last_seen: int) -> int:
     return next(t for t in range(last_seen + 1, len(detectable)) if detectable[t])
 
 
 def main(first: int = 1, last: int = 300, variants: tuple[str, ...] = VARIANTS, table: Path = TABLE) -> None:
     rows = []
-    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn")) as ex:
+    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_thread) as ex:
         for i, row in enumerate(ex.map(one, range(first, last + 1), [variants] * (last - first + 1)), 1):
             rows.append(row)
             print(f"seed {row['seed']}: first detection: team {row['team_first']}, "

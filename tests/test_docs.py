@@ -1,5 +1,6 @@
 """The README documents every configuration key, and CI runs the README's test command."""
 
+import os
 import re
 from pathlib import Path
 import typing
@@ -133,7 +134,9 @@ def test_the_search_reference_runs_on_a_seed_and_its_figure_is_drawn_from_the_co
     spec.loader.exec_module(module)
     monkeypatch.setattr(module, "PARTICLES", 100)
     monkeypatch.setattr(module, "ITERATIONS", 10)
+    threads = os.environ.get("NUMBA_NUM_THREADS")
     row = module.one(3)
+    assert os.environ.get("NUMBA_NUM_THREADS") == threads  # it runs in the test's process: no numba reset
     assert set(row) == set(module.COLUMNS) and row["last_seen"] == 13
     for v in ("team", *module.VARIANTS):
         assert row[f"{v}_first"] is None or 18 <= row[f"{v}_first"] <= 30
