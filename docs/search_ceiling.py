@@ -62,22 +62,18 @@ def one(seed: int, variants: tuple[str, ...] = VARIANTS) -> dict:
     """One seed's row: the team's run and each of ``variants``' searches on its truth."""
     from trackjam.config.loading import load_scenario
     from trackjam.metrics.search import kalman_floor, search_after
-    from trackjam.simulation.build import build
-    from trackjam.simulation.loop import simulate
-    from trackjam.world.target import TruthTarget
+    from trackjam.simulation.engine import Simulation
 
-    s = load_scenario("pursuit", seed=seed)
-    c = build(s)
-    truth_seed, _, _ = c.seed_tree()
-    truth = TruthTarget(c.target, np.random.default_rng(truth_seed))
-    states, detectable = [None], [False]
-    for t in range(1, c.steps + 1):
-        truth.step(t)
+    sim = Simulation(load_scenario("pursuit", seed=seed))
+    c, truth = sim.c, sim.truth
+    states, detectable = [None], [False]  # the run's own truth, step by step
+    while not sim.done:
+        sim.step()
         states.append(None if truth.state is None else truth.state.copy())
         detectable.append(truth.detectable)
+    r = sim.result()
     last_seen = c.target.occlusions[0][0] - 1
     back = first_searched(detectable, last_seen)
-    r = simulate(s)
     A = r.agents
     after = (A["t"] > last_seen) & A["detected"]
     team_first = int(A["t"][after].min()) if after.any() else None

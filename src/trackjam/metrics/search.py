@@ -157,18 +157,19 @@ def search_after(states: list[np.ndarray | None], detectable: np.ndarray, last_s
             continue
         P = X[:, :3]
         mean = w @ P
+        on_mean = np.tile(mean, (n_agents, 1))
+        if previous is not None:  # the last step's aims, moved with the belief (or all on its mean)
+            aims = previous[1] + (mean - center) if aims_free else on_mean
         if bound:
             here = previous[0]
             toward = np.clip([within(mean, u, reach) for u in here], low, high)  # a full move toward the mean
-            aims = previous[1] + (mean - center) if aims_free else np.tile(mean, (n_agents, 1))
-            starts = [(here, aims), (toward, np.tile(mean, (n_agents, 1)))]
+            starts = [(here, aims), (toward, on_mean)]
             U, A, v = place(P, w, starts, ant, rng, iterations,
                             keep=lambda j, u, here=here: np.clip(within(u, here[j], reach), low, high),
                             aims_free=aims_free)
         else:
             starts = [fresh_placement(mean, n_agents)]
             if previous is not None:
-                aims = previous[1] + (mean - center) if aims_free else np.tile(mean, (n_agents, 1))
                 starts.insert(0, (previous[0] + (mean - center), aims))
             U, A, v = place(P, w, starts, ant, rng, iterations, aims_free=aims_free)
         previous, center = (U, A), mean
