@@ -164,12 +164,16 @@ def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_o
         Simulation(two())
     for key, value in (("comms.loss", "0.1"), ("fusion.existence", "evidence"), ("control.plan_over", "belief"),
                        ("fusion.search_reseed", "evidence"), ("filter.reserve_memory", "1"), ("control.belief_at_least", "1"),
-                       ("filter.velocity_jitter", "0.5")):
+                       ("filter.velocity_jitter", "0.5"), ("filter.birth", "mixed"), ("filter.birth_prob", "0.5"),
+                       ("filter.birth_mix", "0.3")):
         with pytest.raises(ConfigError, match=f"^{re.escape(key)}: .* not simulated with several targets"):
             SwarmSimulation(two(f"{key}={value}"))
     with pytest.raises(ConfigError, match=r"^filter\.visibility\.per_particle: .* not simulated with several targets"):
         SwarmSimulation(two("filter.visibility={hide: 0.05, reappear: 0.25, per_particle: true}"))
     SwarmSimulation(two("filter.visibility={hide: 0.05, reappear: 0.25}"))  # the mode itself is simulated
+    with pytest.raises(ConfigError, match=r"^filter\.birth: 'measurement' .*; the swarm engine's LMB filters use their own "
+                                          r"adaptive birth \(leave it at 'uniform'\)$"):
+        SwarmSimulation(two("filter.birth=measurement"))
 
 
 @pytest.mark.parametrize("table", list(SWARM_TABLES))

@@ -253,6 +253,9 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     return [
         ("fusion.existence", s.fusion.existence, "mean"),
         ("filter.mode", s.filter.mode, None),
+        ("filter.birth", s.filter.birth, "uniform"),  # the LMB filters' adaptive birth reads none of these three
+        ("filter.birth_prob", s.filter.birth_prob, 0.02),
+        ("filter.birth_mix", s.filter.birth_mix, 0.5),
         ("filter.reserve_memory", s.filter.reserve_memory, 0),
         ("filter.velocity_jitter", s.filter.velocity_jitter, 0.0),
         ("filter.visibility.per_particle", s.filter.visibility is not None and s.filter.visibility.per_particle, False),
@@ -308,9 +311,10 @@ def check_swarm_options(s: Scenario, overrides: list[str] | None = None) -> None
     for key, value, runs in _swarm_unsupported(s):
         if value != runs:
             value = value.model_dump() if hasattr(value, "model_dump") else value
-            raise ConfigError(blamed_on_set(
-                f"{key}: {value!r} is not simulated with several targets yet; the swarm engine runs with {runs!r}",
-                overrides))
+            how = (f"the swarm engine's LMB filters use their own adaptive birth (leave it at {runs!r})"
+                   if key.startswith("filter.birth") else f"the swarm engine runs with {runs!r}")
+            raise ConfigError(blamed_on_set(f"{key}: {value!r} is not simulated with several targets yet; {how}",
+                                            overrides))
 
 
 def build_swarm(s: Scenario) -> SwarmComponents:
