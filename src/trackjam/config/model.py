@@ -153,7 +153,7 @@ class Response(_Model):
 
     threshold_db: DBW = Field(-40.0, description=f"received power at the target that jams it [dBW], in [{DBW_MIN:g}, {DBW_MAX:g}]")
     steps: Step = Field(3, description=f"consecutive jammed steps before the fail-safe, in [1, {MAX_STEPS}]")
-    action: Literal["land", "hover", "return"] = Field("land", description="fail-safe behaviour")
+    action: Literal["land", "hover", "return"] = Field("land", description="fail-safe behaviour: `land`, `hover` or `return` (to `home`)")
     speed: Real(gt=0, le=MAX_SPEED) = Field(2.0, description=f"speed while landing or returning [m/step], in (0, {MAX_SPEED:g}]")
     home: Vec3 | None = Field(
         None, description="home point for `return` [m], coordinates within +-1e5; default: area's low corner at z=0"
@@ -190,7 +190,7 @@ class Target(_Model):
     stochastic: Stochastic | None = Field(None, description="Bernoulli Markov existence instead of the script")
     response: Response | None = Field(None, description="jamming response (ours); null: off, as in the paper")
     walls: Literal["reflect", "leave"] = Field(
-        "reflect", description="at the area's walls the target is reflected (ours) or leaves and disappears"
+        "reflect", description="at the area's walls the target is reflected (`reflect`, ours) or leaves and disappears (`leave`)"
     )
 
     @field_validator("occlusions")
@@ -450,7 +450,7 @@ class Filter(_Model):
     response: ExpectedResponse | None = Field(
         None,
         description="the jamming fail-safe the filters expect (ours), the fields of target.response: once the team's "
-        "cones have delivered >= `threshold_db` to most of a confirmed track's weight for `steps` steps in a row, the "
+        "cones have delivered >= `threshold_db` to at least half of a confirmed track's weight for `steps` steps in a row, the "
         "track's particles move as the fail-safe (`action` at `speed`) instead of at constant velocity; null: Eq. (1) "
         "always (the paper)",
     )
