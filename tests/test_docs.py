@@ -162,3 +162,32 @@ def test_the_search_reference_runs_on_a_seed_and_its_figure_is_drawn_from_the_co
     assert [r["team_first"] for r in ablations] == [r["team_first"] for r in rows]
     assert list(ablations[0]) == list(module.columns(module.ABLATIONS))
     assert len(module.summary(ablations, module.ABLATIONS)) == 2 + len(module.ABLATIONS)
+
+
+def test_the_report_threshold_rescoring_gives_each_runs_own_quality_at_the_presets_threshold():
+    """docs/report_threshold.py: the logs of a run (small), scored at the preset's threshold 0.5,
+    give the run's own held and false-track shares, re-acquisition and mean OSPA (the report does
+    not feed back); a lower threshold only adds reports. The committed log covers its seeds and
+    reproduces the docs' preset rows."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("report_threshold", ROOT / "docs" / "report_threshold.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    for seed in (3, 5):
+        rows, summary = module.one(seed, filter__particles=1500, filter__birth_particles=300, steps=22)
+        assert [r["t"] for r in rows] == list(range(1, 23))
+        at_half = module.score(rows, 0.5)
+        assert at_half["held"] == summary["held_share"] and at_half["false_track"] == summary["false_track_share"]
+        assert at_half["reacquired"] == summary["reacquired_after_last_spell"]
+        assert at_half["ospa"] == pytest.approx(summary["ospa_mean"], abs=1e-12)
+        assert [r["reported"] for r in rows] == [r["existence"] > 0.5 and r["seen"] > 0.5 and r["spread_m"] <= 8
+                                                 for r in rows]
+        lower = module.score(rows, 0.2)
+        assert lower["held"] >= at_half["held"] and lower["false_track"] >= at_half["false_track"]
+        assert lower["reacquired"] >= at_half["reacquired"]
+    logged = module.read_log(1, 10**6)
+    assert sorted(logged) == list(range(1, 451)) and all(len(v) == 30 for v in logged.values())
+    table = module.table({s: logged[s] for s in range(1, 151)})
+    assert table[3] == "| 0.5 (the preset) | 56.4 % | 3.2 % | 45 of 150 | 4.43 |"
+    assert len(table) == 3 + len(module.THRESHOLDS)
