@@ -312,6 +312,26 @@ def test_a_bad_thread_count_in_the_environment_is_one_line(tmp_path, value):
     assert not out.exists()
 
 
+def test_a_bad_thread_count_in_the_environment_is_refused_alone_before_the_warnings_and_the_kernels(tmp_path):
+    # it was read while the kernels were loaded: after the scenario's warning (steps=2 ends before
+    # paper-fig3's occlusion) and the "loading the compiled kernels" line, not as one line alone
+    import os
+
+    out = tmp_path / "r"
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--no-figures",
+                        "--out", str(out)], capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": "0"})
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == ("trackjam: error: TRACKJAM_THREADS='0': must be a whole number of threads in [1, 1024] "
+                        "(or unset: one per agent up to the CPU count)\n")
+    assert not out.exists()
+    # a scenario that sets control.grasp.threads does not read it
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--set",
+                        "filter.particles=100", "--set", "filter.birth_particles=20", "--set", "control.grasp.threads=1",
+                        "--no-figures", "--out", str(out)],
+                       capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": "0"})
+    assert r.returncode == 0, r.stderr
+
+
 @pytest.mark.parametrize("shape", ["dangling", "loop", "dangling parent"])
 @pytest.mark.parametrize("command", ["run", "experiment"])
 def test_an_out_through_a_symbolic_link_that_leads_nowhere_is_refused_before_any_work(tmp_path, shape, command):
