@@ -310,3 +310,46 @@ def test_a_bad_thread_count_in_the_environment_is_one_line(tmp_path, value):
     assert _one_line(r) == (f"trackjam: error: TRACKJAM_THREADS={value if len(value) < 40 else value[:37] + '...'!r}: must be a whole number of threads in "
                             "[1, 1024] (or unset: one per agent up to the CPU count)")
     assert not out.exists()
+
+
+def test_a_bad_thread_count_in_the_environment_is_refused_alone_before_the_warnings_and_the_kernels(tmp_path):
+    # it was read while the kernels were loaded: after the scenario's warning (steps=2 ends before
+    # paper-fig3's occlusion) and the "loading the compiled kernels" line, not as one line alone
+    import os
+
+    out = tmp_path / "r"
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--no-figures",
+                        "--out", str(out)], capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": "0"})
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == ("trackjam: error: TRACKJAM_THREADS='0': must be a whole number of threads in [1, 1024] "
+                        "(or unset: one per agent up to the CPU count)\n")
+    assert not out.exists()
+    # a scenario that sets control.grasp.threads does not read it
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--set",
+                        "filter.particles=100", "--set", "filter.birth_particles=20", "--set", "control.grasp.threads=1",
+                        "--no-figures", "--out", str(out)],
+                       capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": "0"})
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("shape", ["dangling", "loop", "dangling parent"])
+@pytest.mark.parametrize("command", ["run", "experiment"])
+def test_an_out_through_a_symbolic_link_that_leads_nowhere_is_refused_before_any_work(tmp_path, shape, command):
+    """A dangling link (or a loop) where the output folder would be made: no folder can be made
+    through it. `run` found that out only after the whole simulation (`cannot create the folder
+    (File exists)`), `experiment` said "cannot write there (File exists)"."""
+    link = tmp_path / "link"
+    if shape == "loop":
+        (tmp_path / "other").symlink_to(link)
+        link.symlink_to(tmp_path / "other")
+    else:
+        link.symlink_to(tmp_path / "nowhere")
+    out = link / "sub" if shape == "dangling parent" else link
+    if command == "run":
+        r = _trackjam("run", "paper-fig3", "--set", "steps=2", "--no-figures", "--out", str(out))
+        assert "loading" not in r.stdout and "step" not in r.stdout  # refused before any work
+    else:
+        r = _trackjam("experiment", "table1", "--trials", "1", "--steps", "2", "--workers", "1", "--out", str(out))
+    line = _one_line(r)
+    assert line.startswith(f"trackjam: error: --out {out}: {link} is a symbolic link") and "leads nowhere" in line
+    assert not (tmp_path / "nowhere").exists() and link.is_symlink()

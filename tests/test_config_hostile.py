@@ -288,6 +288,19 @@ def test_a_set_value_that_is_malformed_yaml_says_so_naming_the_item(item, proble
     assert _refused("paper-fig3", [item]) == f"--set {item}: not valid YAML: {problem}"
 
 
+@pytest.mark.parametrize("key, text", [("name", "aGVsbG8="), ("control.solver", "Z3Jhc3A=")])
+def test_binary_data_is_refused_not_read_as_text(tmp_path, key, text):
+    # `name: !!binary aGVsbG8=` named the run "hello" and `control.solver: !!binary ...` chose
+    # grasp, without a word: bytes passed for text
+    item = f"{key}=!!binary {text}"
+    assert _refused("paper-fig3", [item]) == f"--set {item}: not valid YAML: binary data (!!binary) is not a scenario value (line 1)"
+    f = tmp_path / "s.yaml"
+    section, _, field = key.rpartition(".")
+    f.write_text(f"steps: 3\n{section}:\n  {field}: !!binary {text}\n" if section else f"steps: 3\n{key}: !!binary {text}\n")
+    message = _refused(str(f), [])
+    assert message == f"{f}: not valid YAML: binary data (!!binary) is not a scenario value (line {3 if section else 2})"
+
+
 def test_a_long_malformed_set_item_is_shortened():
     item = "agents.initial=[" + ", ".join(["[1, 2, 3]"] * 20)
     message = _refused("paper-fig3", [item])

@@ -275,6 +275,10 @@ def run(
     from trackjam.simulation.output import check_out_dir
 
     check_out_dir(out, s, default)  # before any work: nothing is computed for a folder we cannot use
+    if s.control.grasp.threads is None:  # TRACKJAM_THREADS, read by the build: refused before the warnings
+        from trackjam.simulation.build import default_threads
+
+        default_threads(s.n_agents)
     _warn(s)  # after every refusal: a refused run prints its one line and nothing else
 
     from rich.console import Console

@@ -9,16 +9,21 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 
 TEMP_MARK = ".tmp"
 
 
 def existing_folder(path: Path, where: str) -> Path:
     """The nearest existing path at or above ``path`` (absolute), where a folder to write in
-    would be made; a file there is refused in one line beginning with ``where``."""
+    would be made; a file there, or a symbolic link on the way that leads nowhere (a missing
+    target, a loop: no folder can be made through it, and a run found that out only once it
+    was done), is refused in one line beginning with ``where``."""
     p = Path(path).absolute()
     while not p.exists():
+        if p.is_symlink():
+            raise ConfigError(f"{where}: {p} is a symbolic link to {shortened(os.readlink(p), 120)} that leads "
+                              "nowhere (a missing target or a loop); no folder can be made there")
         p = p.parent
     if not p.is_dir():
         raise ConfigError(f"{where}: {p} is a file, not a folder")

@@ -88,6 +88,22 @@ def test_a_result_name_taken_by_a_folder_is_refused_up_front(done, tmp_path, nam
     assert {p.relative_to(out): p.stat().st_mtime_ns for p in out.rglob("*")} == before
 
 
+@pytest.mark.parametrize("make", [lambda p: p.mkdir(), os.mkfifo], ids=["folder", "pipe"])
+def test_a_trial_file_name_taken_by_a_folder_or_a_pipe_is_refused_before_any_trial_runs(done, tmp_path, make):
+    # it was passed over as "not a trial of this experiment", the trial run again, and its write
+    # failed once it was done ("trial 0 of configuration 1 cannot be written (Is a directory)")
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    slot = out / "trials" / trial_filename(1, 0)
+    slot.unlink()
+    make(slot)
+    before = {p.relative_to(out): p.stat().st_mtime_ns for p in out.rglob("*")}
+    with pytest.raises(ConfigError, match=rf"^--out {out}: trials/{slot.name} is a (folder|device or a pipe), "
+                                          "not a file; move it away"):
+        run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert {p.relative_to(out): p.stat().st_mtime_ns for p in out.rglob("*")} == before
+
+
 @pytest.mark.parametrize("name, make", [("summary.csv", lambda p: p.symlink_to("/dev/null")),
                                         ("paired.csv", lambda p: os.mkfifo(p))])
 def test_a_result_name_taken_by_a_device_or_a_pipe_is_named_so(done, tmp_path, name, make):
@@ -117,12 +133,23 @@ def test_a_summary_that_cannot_be_written_late_is_one_line_and_keeps_the_trials(
     assert len(list((out / "trials").iterdir())) == 4
 
 
-def test_a_trial_that_cannot_be_written_is_one_line_and_keeps_the_others(done, tmp_path):
+def test_a_trial_that_cannot_be_written_is_one_line_and_keeps_the_others(done, tmp_path, monkeypatch):
+    import trackjam.experiments.engine as engine
+
     out = tmp_path / "e"
     shutil.copytree(done, out)
     last = out / "trials" / trial_filename(2, 1)  # configurations count from 1
     last.unlink()
-    last.mkdir()  # a folder where the trial's file goes: read back as a stranger, then written over
+    write_trial = engine.write_trial
+
+    def late_folder(folder, record):
+        # a folder where the trial's file goes, made while the trial ran (one there before the
+        # run is refused up front: test_a_trial_file_name_taken_by_a_folder_or_a_pipe_...)
+        if (record["config"], record["trial"]) == (2, 1):
+            last.mkdir()
+        return write_trial(folder, record)
+
+    monkeypatch.setattr(engine, "write_trial", late_folder)
     with pytest.raises(OutputError, match=r"trial 1 of configuration 2 cannot be written \(Is a directory\); the 3 trials"):
         run_experiment("constraints", workers=1, out=out, **SWEEP)
     assert sorted(p.name for p in (out / "trials").iterdir() if p.is_file()) == sorted(

@@ -69,10 +69,18 @@ class _Loader(yaml.SafeLoader):
             seen.add(key)
         return super().construct_mapping(node, deep)
 
+    def construct_yaml_binary(self, node: yaml.ScalarNode) -> Any:
+        # bytes passed as text: `name: !!binary aGVsbG8=` named the run "hello", without a word
+        raise yaml.constructor.ConstructorError(
+            None, None, f"binary data (!!binary) is not a scenario value (line {node.start_mark.line + 1})",
+            node.start_mark,
+        )
+
 
 _OCTAL = re.compile(r"[-+]?0[0-7]+")
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
 _Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
+_Loader.add_constructor("tag:yaml.org,2002:binary", _Loader.construct_yaml_binary)
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),

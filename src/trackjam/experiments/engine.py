@@ -211,6 +211,17 @@ def _check_trials_folder(out: Path, where: str) -> None:
         raise ConfigError(f"{where}: trials is a file, not a folder")
 
 
+def _check_trial_slots(folder: Path, scenarios: Mapping[tuple[int, int], Scenario], where: str) -> None:
+    """Refuse, in one line beginning with ``where``, a trial of this run whose file name in
+    ``folder`` is held by something other than a file (a folder, a pipe): the trial would be
+    run and then fail to be written (``Is a directory``), after the trials before it."""
+    if not folder.is_dir():
+        return
+    for p in folder.iterdir():
+        if parse_trial_filename(p.name) in scenarios and (what := taken_by(p)):
+            raise ConfigError(f"{where}: trials/{p.name} is {what}, not a file; move it away or choose another --out")
+
+
 def _claim(out: Path, params: dict) -> None:
     """Write experiment.json (atomically) unless it is there, then create OUT/trials: in that
     order a sweep killed in between leaves an OUT that resumes (the other order left a
@@ -377,6 +388,7 @@ def run_experiment(
     report = make_reporter(progress, experiment, configurations, total=len(scenarios))
     params = _parameters(experiment, trials, steps, seed, overrides, trial)
     _check_out(out, params, experiment.figure)
+    _check_trial_slots(out / "trials", scenarios, f"--out {out}")
 
     with contextlib.ExitStack() as stack:  # the scheduler reached, then experiment.json, trials/ and the lock
         executor, window = stack.enter_context(open_executor(workers, scheduler))
