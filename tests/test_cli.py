@@ -255,6 +255,14 @@ def test_the_readmes_quick_start_table_is_what_the_run_prints(tmp_path):
     assert {k: printed.get(k) for k in shown} == shown
 
 
+def test_the_ospa_row_names_the_scenarios_own_order_and_cut_off(tmp_path):
+    """The closing table's OSPA label says the p and c the run used, not the defaults."""
+    r = runner.invoke(app, ["run", "paper-fig3", "--out", str(tmp_path / "run"), "--no-figures", "--set", "steps=2",
+                            "--set", "metrics.ospa_cutoff=5", "--set", "metrics.ospa_order=1"])
+    assert r.exit_code == 0, r.output
+    assert "mean OSPA (p=1, c=5) [m]" in r.output and "c=10" not in r.output
+
+
 def _help(*args: str) -> str:
     r = runner.invoke(app, [*args, "--help"])
     assert r.exit_code == 0, r.output

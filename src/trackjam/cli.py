@@ -304,7 +304,7 @@ def run(
     table.add_column("metric")
     table.add_column("value", justify="right")
     add = lambda label, value: table.add_row(escape(label), value)  # noqa: E731
-    add("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")
+    add(_ospa_label(s), f"{m['ospa_mean']:.2f}")
     add("jamming incidents per agent", " ".join(str(v) for v in m["jamming_incidents"]))
     add("mean power at target [W]", f"{m['target_received_w_mean']:.3g}")
     add("mean interference at agents [W]", f"{m['agent_received_w_mean']:.3g}")
@@ -316,6 +316,11 @@ def run(
         add("target downed at step", str(m["downed_at"]))
     Console(width=100).print(table)
     typer.echo(f"wrote {len(files)} files to {out}")
+
+
+def _ospa_label(s) -> str:
+    """The OSPA row's label with the scenario's own order and cut-off (metrics.ospa_order, ospa_cutoff)."""
+    return f"mean OSPA (p={s.metrics.ospa_order:g}, c={s.metrics.ospa_cutoff:g}) [m]"
 
 
 def _swarm_table(s, m: dict):
@@ -339,7 +344,7 @@ def _swarm_table(s, m: dict):
         " ".join(_share(v) for v in m["ceiling_share"]) + f"  ({_share(m['ceiling_share_total'])})")
     add("steps with a false track (false tracks)", f"{m['false_track_steps']} ({m['false_tracks']})")
     add("label switches per target", " ".join(str(v) for v in m["label_switches"]))
-    add("mean OSPA (p=2, c=10) [m]", f"{m['ospa_mean']:.2f}")
+    add(_ospa_label(s), f"{m['ospa_mean']:.2f}")
     add("  its cardinality part [m]", f"{m['ospa_card_mean']:.2f}")
     add("mean |tracks - detectable targets|", f"{m['cardinality_error_mean']:.2f}")
     add("jamming incidents per agent", " ".join(str(v) for v in m["jamming_incidents"]))
