@@ -353,3 +353,17 @@ def test_an_out_through_a_symbolic_link_that_leads_nowhere_is_refused_before_any
     line = _one_line(r)
     assert line.startswith(f"trackjam: error: --out {out}: {link} is a symbolic link") and "leads nowhere" in line
     assert not (tmp_path / "nowhere").exists() and link.is_symlink()
+
+
+def test_an_empty_scenario_name_a_device_as_out_and_a_typo_inside_a_target_list_are_named(tmp_path):
+    """`validate ''` said ".: is a folder"; `--out /dev/null` was "a file"; a misspelt key of a
+    target in `targets:` got no "did you mean"."""
+    assert _one_line(_trackjam("validate", "")) == (
+        "trackjam: error: '': an empty scenario name; give a preset (`trackjam presets`) or a YAML/TOML file")
+    line = _one_line(_trackjam("run", "paper-fig3", "--out", "/dev/null", "--set", "steps=2"))
+    assert line.endswith("--out /dev/null: is a device, pipe or socket, not a folder")
+    f = tmp_path / "two.yaml"
+    f.write_text("name: two\nsteps: 3\ntargets:\n  - {id: a, initial: [1, 1, 1, 0, 0, 0], apears: 1}\n"
+                 "  - {id: b, initial: [5, 5, 5, 0, 0, 0]}\n")
+    assert _one_line(_trackjam("validate", str(f))).endswith(
+        "targets.0.apears: unknown key (did you mean targets.0.appears?)")

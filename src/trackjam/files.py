@@ -14,6 +14,12 @@ from trackjam.errors import ConfigError, shortened
 TEMP_MARK = ".tmp"
 
 
+def kind_of(path: Path) -> str:
+    """What stands at an existing ``path`` that is not a folder, for a message: ``a file`` or
+    ``a device, pipe or socket`` (``--out /dev/null`` is not a file)."""
+    return "a file" if path.is_file() else "a device, pipe or socket"
+
+
 def existing_folder(path: Path, where: str) -> Path:
     """The nearest existing path at or above ``path`` (absolute), where a folder to write in
     would be made; a file there, or a symbolic link on the way that leads nowhere (a missing
@@ -26,7 +32,7 @@ def existing_folder(path: Path, where: str) -> Path:
                               "nowhere (a missing target or a loop); no folder can be made there")
         p = p.parent
     if not p.is_dir():
-        raise ConfigError(f"{where}: {p} is a file, not a folder")
+        raise ConfigError(f"{where}: {p} is {kind_of(p)}, not a folder")
     return p
 
 

@@ -131,18 +131,25 @@ def _yaml(text: str) -> Any:
     return _parsed(lambda t: yaml.load(t, Loader=_Loader), text)  # noqa: S506 (a SafeLoader)
 
 
+def _model_in(annotation: Any) -> Any:
+    """The pydantic model an annotation holds, looking through Optional, unions and lists
+    (``list[Target] | None`` gives ``Target``); None when it holds none."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    return next((m for a in typing.get_args(annotation) if (m := _model_in(a)) is not None), None)
+
+
 def _section_keys(loc: tuple) -> list[str]:
-    """The keys the section at ``loc`` accepts (empty when ``loc`` is not a section)."""
+    """The keys the section at ``loc`` accepts (empty when ``loc`` is not a section); an index
+    into a list of sections (``targets.0``) stays in the list's section."""
     model: Any = Scenario
     for part in loc:
+        if isinstance(part, int):
+            continue
         fields = getattr(model, "model_fields", {})
         if part not in fields:
             return []
-        annotation = fields[part].annotation
-        model = next(
-            (a for a in [annotation, *typing.get_args(annotation)] if isinstance(a, type) and issubclass(a, BaseModel)),
-            None,
-        )
+        model = _model_in(fields[part].annotation)
     return list(getattr(model, "model_fields", {}))
 
 
@@ -459,6 +466,8 @@ def _deep_copy(d: Any) -> Any:
 def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
     """Raw mapping of a preset name or a file, and a label for messages."""
     text = str(name_or_path)
+    if not text:  # Path("") is the current folder: "is a folder" named nothing the user typed
+        raise ConfigError(f"{text!r}: an empty scenario name; give a preset (`trackjam presets`) or a YAML/TOML file")
     if isinstance(name_or_path, str) and text in preset_names():
         return _preset_data(text), f"preset {text}"
     return _read_file(Path(text)), text

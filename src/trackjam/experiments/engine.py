@@ -57,7 +57,7 @@ from trackjam.experiments.summary import (
     write_table,
     write_trial,
 )
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, taken_by
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
 
 TrialFunction = Callable[[Scenario], Mapping[str, Any]]
 
@@ -178,7 +178,7 @@ def _check_out(out: Path, params: dict, figure: str) -> None:
     """Refuse an OUT that is a file, unwritable, holds something else, or holds something other
     than a file where a result goes (summary.csv, timing.csv, paired.csv, ``figure``); writes nothing."""
     if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out}: is a file, not a folder")
+        raise ConfigError(f"--out {out}: is {kind_of(out)}, not a folder")
     meta = out / "experiment.json"
     if meta.exists() or meta.is_symlink():
         old = read_parameters(meta)

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from trackjam.errors import ConfigError, OutputError
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, taken_by
+from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
 from trackjam.simulation.build import figure_settings, scenario_text
 
 if TYPE_CHECKING:
@@ -42,7 +42,7 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
     out = Path(out)
     where = f"{out} (the default output folder, from the scenario's name and seed)" if default else f"--out {out}"
     if out.exists() and not out.is_dir():
-        raise ConfigError(f"{where}: is a file, not a folder")
+        raise ConfigError(f"{where}: is {kind_of(out)}, not a folder")
     if out.is_dir():
         entries = [p.name for p in out.iterdir() if not _leftover(p)]
         if entries:
