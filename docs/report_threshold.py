@@ -40,17 +40,10 @@ def one(seed: int, **overrides) -> tuple[list[dict], dict]:
     from trackjam.simulation.engine import Simulation, seen
 
     sim = Simulation(load_scenario("pursuit", seed=seed, **overrides))
-    team_fuse, last = sim.team.fuse, {}
-
-    def fuse(posteriors):  # the team's fused estimate, kept whether it is reported or not
-        last["fused"] = team_fuse(posteriors)
-        return last["fused"]
-
-    sim.team.fuse = fuse
     rows = []
     while not sim.done:
-        step = sim.step().step
-        fused, truth = last["fused"], step["truth"]
+        record = sim.step()
+        step, fused, truth = record.step, record.fused, record.step["truth"]
         held = fused is not None and fused.mean is not None
         rows.append({"seed": seed, "t": step["t"], "detectable": bool(step["target_detectable"]),
                      "reported": step["estimate"] is not None,

@@ -41,6 +41,28 @@ def test_given_actions_are_applied_and_logged():
     assert np.allclose(rec.agents["power_w"], sim.c.antenna.levels_w[levels])
 
 
+def test_each_record_carries_the_teams_fused_estimate_reported_or_not():
+    """record.fused is the team's estimate; the report (step["estimate"]) is its position while
+    P(exists and visible) > 0.5 and its spread is within fusion.report_spread, else None."""
+    from trackjam.control.planning import position_spread
+    from trackjam.simulation.engine import seen
+
+    s = load_scenario("pursuit", ["steps=20", "filter.particles=800", "filter.birth_particles=200", "seed=3"])
+    sim = Simulation(s)
+    reported = silent = 0
+    while not sim.done:
+        rec = sim.step()
+        fused, est = rec.fused, rec.step["estimate"]
+        assert fused is not None and fused.existence == rec.step["existence"]
+        if seen(fused) > 0.5 and position_spread(fused.cov) <= s.fusion.report_spread:
+            assert np.array_equal(est, fused.mean[:3])
+            reported += 1
+        else:
+            assert est is None
+            silent += 1
+    assert reported and silent  # both branches were met (the occlusion silences the team)
+
+
 def test_step_after_the_end_is_refused():
     sim = Simulation(load_scenario("paper-fig3", FAST))
     for _ in range(4):

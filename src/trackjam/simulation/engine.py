@@ -56,12 +56,15 @@ class Transmission:
 
 @dataclass(frozen=True)
 class StepRecord:
-    """One step's record: the rows it adds to the step, agent and measurement logs."""
+    """One step's record: the rows it adds to the step, agent and measurement logs, and the
+    team's fused estimate whether it was reported or not (``step["estimate"]`` is the report;
+    None when every agent is down)."""
 
     t: int
     step: dict
     agents: dict
     scans: list[tuple[np.ndarray, np.ndarray]]
+    fused: FusedEstimate | None = None
 
 
 @dataclass
@@ -171,6 +174,7 @@ class Simulation:
                 heard=np.array([d.heard for d in decisions], dtype=np.int64),
             ),
             scans=scans,
+            fused=fused,
         )
         self.log.add(record)
         return record
