@@ -8,7 +8,7 @@ is exact: at the preset's threshold, 0.5, it gives every run's own held steps an
 (``tests/test_docs.py`` holds it to that). A step is reported when the fused existence is above
 0.5, P(exists and visible) above the threshold and the position spread at most
 ``fusion.report_spread``; held, false track and re-acquisition are then those of
-``trackjam.metrics.track_quality``, and the OSPA that of one target (p = 2, c = 10).
+``trackjam.metrics.track_quality``, and the OSPA ``trackjam.metrics.ospa``'s (c = 10).
 
 Run: python docs/report_threshold.py [FIRST LAST]   (seeds, by default 1 450; 2 spawned workers;
                                                      writes docs/experiments/report/steps.csv.gz)
@@ -17,12 +17,13 @@ Run: python docs/report_threshold.py [FIRST LAST]   (seeds, by default 1 450; 2 
 import csv
 import gzip
 import multiprocessing as mp
-import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+from trackjam.experiments.backends import one_numba_thread  # the pool's workers: one numba thread each
 
 HERE = Path(__file__).parent
 LOG = HERE / "experiments" / "report" / "steps.csv.gz"
@@ -54,32 +55,28 @@ def one(seed: int, **overrides) -> tuple[list[dict], dict]:
     return rows, sim.result().summary
 
 
-def one_thread() -> None:
-    """Pool initializer: numba's threads in each spawned worker, one per process."""
-    os.environ["NUMBA_NUM_THREADS"] = "1"
-
-
 def score(rows: list[dict], threshold: float) -> dict:
     """One seed's logs (one row per step, in order) scored as if the team reported above
     ``threshold``: held and false-track shares of the detectable steps, whether it held the target
     after the last hidden spell, and the mean OSPA."""
+    from trackjam.metrics.ospa import ospa
     from trackjam.metrics.track_quality import track_quality
 
     n = len(rows)
     detectable = np.array([r["detectable"] for r in rows])
     error = np.array([r["error_m"] for r in rows])
     report = np.array([r["existence"] > CONFIRM and r["seen"] > threshold and r["spread_m"] <= SPREAD for r in rows])
-    # the classes need only the distance: the truth at the origin, a report at its error along x
+    # the classes and the OSPA need only the distance: the truth at the origin, a report at its error along x
     zeros, nan = np.zeros(n), np.full(n, np.nan)
     est_x = np.where(report, error, np.nan)
     existence = np.array([r["existence"] for r in rows])
     q = track_quality({"target_detectable": detectable, "truth_x": zeros, "truth_y": zeros, "truth_z": zeros,
                        "est_x": est_x, "est_y": np.where(report, 0.0, nan), "est_z": np.where(report, 0.0, nan),
                        "existence": existence})
-    ospa = np.where(report & detectable, np.minimum(CUTOFF, np.nan_to_num(error, nan=CUTOFF)),
-                    np.where(report | detectable, CUTOFF, 0.0))
+    errors = [ospa(np.zeros(3) if d else None, np.array([e, 0.0, 0.0]) if r else None, c=CUTOFF)
+              for d, r, e in zip(detectable, report, error)]
     return {"held": q["held_share"], "false_track": q["false_track_share"],
-            "reacquired": bool(q["reacquired_after_last_spell"]), "ospa": float(ospa.mean())}
+            "reacquired": bool(q["reacquired_after_last_spell"]), "ospa": float(np.mean(errors))}
 
 
 def read_log(first: int, last: int) -> dict[int, list[dict]]:
@@ -131,7 +128,7 @@ def main(argv: list[str]) -> None:
     first, last = (int(a) for a in argv[:2]) if len(argv) >= 2 else (1, 450)
     LOG.parent.mkdir(parents=True, exist_ok=True)
     tmp = LOG.with_suffix(".part")
-    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_thread) as pool, \
+    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_numba_thread) as pool, \
             gzip.open(tmp, "wt", newline="") as f:
         w = csv.DictWriter(f, COLUMNS)
         w.writeheader()

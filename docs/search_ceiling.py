@@ -20,12 +20,13 @@ Run: python docs/search_ceiling.py [FIRST LAST]            (seeds, by default 1 
      python docs/search_ceiling.py figure                  (the figure and both summaries from the CSVs)"""
 
 import multiprocessing as mp
-import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+from trackjam.experiments.backends import one_numba_thread  # the pool's workers: one numba thread each
 
 PARTICLES, ITERATIONS = 2000, 150  # the searcher's belief and its placement's local search
 FIX_SD = 0.35  # [m] per axis: range noise 0.8 m and 3.6 deg of bearing at 5-6 m, three agents
@@ -98,18 +99,13 @@ def one(seed: int, variants: tuple[str, ...] = VARIANTS) -> dict:
     return row
 
 
-def one_thread() -> None:
-    """A worker's numba runs on one thread (set before it is first imported there)."""
-    os.environ["NUMBA_NUM_THREADS"] = "1"
-
-
 def first_searched(detectable: list[bool], last_seen: int) -> int:
     return next(t for t in range(last_seen + 1, len(detectable)) if detectable[t])
 
 
 def main(first: int = 1, last: int = 300, variants: tuple[str, ...] = VARIANTS, table: Path = TABLE) -> None:
     rows = []
-    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_thread) as ex:
+    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_numba_thread) as ex:
         for i, row in enumerate(ex.map(one, range(first, last + 1), [variants] * (last - first + 1)), 1):
             rows.append(row)
             print(f"seed {row['seed']}: first detection: team {row['team_first']}, "
