@@ -361,7 +361,7 @@ def test_an_empty_scenario_name_a_device_as_out_and_a_typo_inside_a_target_list_
     assert _one_line(_trackjam("validate", "")) == (
         "trackjam: error: '': an empty scenario name; give a preset (`trackjam presets`) or a YAML/TOML file")
     line = _one_line(_trackjam("run", "paper-fig3", "--out", "/dev/null", "--set", "steps=2"))
-    assert line.endswith("--out /dev/null: is a device, pipe or socket, not a folder")
+    assert line.endswith("--out /dev/null: is a device or a pipe, not a folder")
     f = tmp_path / "two.yaml"
     f.write_text("name: two\nsteps: 3\ntargets:\n  - {id: a, initial: [1, 1, 1, 0, 0, 0], apears: 1}\n"
                  "  - {id: b, initial: [5, 5, 5, 0, 0, 0]}\n")

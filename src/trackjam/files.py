@@ -14,12 +14,6 @@ from trackjam.errors import ConfigError, shortened
 TEMP_MARK = ".tmp"
 
 
-def kind_of(path: Path) -> str:
-    """What stands at an existing ``path`` that is not a folder, for a message: ``a file`` or
-    ``a device, pipe or socket`` (``--out /dev/null`` is not a file)."""
-    return "a file" if path.is_file() else "a device, pipe or socket"
-
-
 def existing_folder(path: Path, where: str) -> Path:
     """The nearest existing path at or above ``path`` (absolute), where a folder to write in
     would be made; a file there, or a symbolic link on the way that leads nowhere (a missing
@@ -52,6 +46,12 @@ def taken_by(path: Path) -> str | None:
     if not path.exists() or path.is_file():
         return None
     return "a folder" if path.is_dir() else "a device or a pipe"
+
+
+def kind_of(path: Path) -> str:
+    """What stands at an existing ``path`` that is not a folder, for a message: ``a file``, or
+    :func:`taken_by`'s ``a device or a pipe`` (``--out /dev/null`` is not a file)."""
+    return taken_by(path) or "a file"
 
 
 def special_file(path: Path) -> bool:
