@@ -247,13 +247,17 @@ LMB_BIRTH_RATE = 0.1
 LMB_BIRTH_EXISTENCE_MAX = 0.1
 
 
+# the one-target birth the swarm engine's LMB filters replace with their own adaptive birth
+_OWN_BIRTH = ("filter.birth", "filter.birth_prob", "filter.birth_mix")
+
+
 def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
     """Options of the one-target engine the swarm engine does not read yet: (key, its value in
     the scenario, the value the swarm engine runs with); a scenario that sets another is refused."""
     return [
         ("fusion.existence", s.fusion.existence, "mean"),
         ("filter.mode", s.filter.mode, None),
-        ("filter.birth", s.filter.birth, "uniform"),  # the LMB filters' adaptive birth reads none of these three
+        ("filter.birth", s.filter.birth, "uniform"),  # _OWN_BIRTH: the LMB filters read none of these three
         ("filter.birth_prob", s.filter.birth_prob, 0.02),
         ("filter.birth_mix", s.filter.birth_mix, 0.5),
         ("filter.reserve_memory", s.filter.reserve_memory, 0),
@@ -312,7 +316,7 @@ def check_swarm_options(s: Scenario, overrides: list[str] | None = None) -> None
         if value != runs:
             value = value.model_dump() if hasattr(value, "model_dump") else value
             how = (f"the swarm engine's LMB filters use their own adaptive birth (leave it at {runs!r})"
-                   if key.startswith("filter.birth") else f"the swarm engine runs with {runs!r}")
+                   if key in _OWN_BIRTH else f"the swarm engine runs with {runs!r}")
             raise ConfigError(blamed_on_set(f"{key}: {value!r} is not simulated with several targets yet; {how}",
                                             overrides))
 
