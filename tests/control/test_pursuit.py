@@ -72,7 +72,12 @@ def test_a_searching_team_moves_its_search_point_ahead_along_the_coasted_velocit
 
 
 @pytest.mark.parametrize("override, key", [("control.horizon=0", "control.horizon"), ("control.lead=-1", "control.lead"),
-                                           ("fusion.search_reseed=never", "fusion.search_reseed")])
+                                           ("fusion.search_reseed=never", "fusion.search_reseed"),
+                                           ("control.close_in=0", "control.close_in"),
+                                           ("control.close_in=-1", "control.close_in"),
+                                           ("control.close_in=1.5", "control.close_in"),
+                                           ("control.close_in=.nan", "control.close_in"),
+                                           ("control.close_in=high", "control.close_in")])
 def test_bad_pursuit_options_give_one_line_naming_the_key(override, key):
     with pytest.raises(ConfigError) as info:
         load_scenario("paper-fig3", [override])
@@ -138,3 +143,12 @@ def test_a_team_with_a_lead_plans_and_points_half_a_step_ahead_of_the_papers_x_b
     assert np.allclose(rec.step["aim"], x_bar + 0.5 * v_bar)
     assert np.allclose(rec.agents["point"], rec.step["aim"])  # pointing: aim steers every antenna there
 
+
+
+@pytest.mark.parametrize("override, why", [("control.solver=greedy", "control.solver `greedy`"),
+                                           ("control.constraints=false", "control.constraints `false`")])
+def test_closing_in_is_refused_where_the_plan_ignores_eq_13_already(override, why):
+    with pytest.raises(ConfigError) as info:
+        load_scenario("paper-fig3", ["control.close_in=0.05", override])
+    line = str(info.value)
+    assert "\n" not in line and line.startswith("--set control.close_in=0.05: control.close_in (0.05): " + why)

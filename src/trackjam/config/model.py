@@ -560,6 +560,14 @@ class Control(_Model):
         description="H, intercept horizon [steps] (ours): aim where the target, coasted by Eq. (1), can first be "
         "reached by the nearest agent within H steps, in 1..100; 1: x_bar, the paper",
     )
+    close_in: Real(gt=0, le=1) | None = Field(
+        None,
+        description="ours: when the best plan's Xi (Eq. 12) is below this, the team closes in instead: the agents move "
+        "as the best plan without Eq. (13) would take them, and transmit at the levels that maximise Xi under Eq. (13) "
+        "at those positions (the same solver, twice more), so a team whose every feasible plan is worth next to nothing "
+        "does not spread away from the target; in (0, 1]; null: never (the paper); not with `greedy` or "
+        "`constraints: false`, which plan without Eq. (13) already",
+    )
 
 
 class Failure(_Model):
@@ -718,6 +726,11 @@ class Scenario(_Model):
             raise ValueError(f"control.at_least ({self.control.at_least}) exceeds the number of agents ({n})")
         if self.control.belief_at_least is not None and self.control.belief_at_least > n:
             raise ValueError(f"control.belief_at_least ({self.control.belief_at_least}) exceeds the number of agents ({n})")
+        c = self.control
+        if c.close_in is not None and (c.solver == "greedy" or not c.constraints):
+            why = "control.solver `greedy` plans" if c.solver == "greedy" else "control.constraints `false` plans"
+            raise ValueError(f"control.close_in ({c.close_in:g}): {why} without Eq. (13) already, so there is nothing "
+                             "to close in from; leave control.close_in null")
         lo, hi = self.area.low, self.area.high
         for j, u in enumerate(self.agents.initial):
             if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):

@@ -11,7 +11,7 @@ ties to the lowest sender; a plan without a value (the hover fall-back) ranks be
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -35,6 +35,7 @@ class Proposal:
     objective: float  # Xi of the plan at its aim; NaN when it has none
     optimal: bool = False  # proven optimal (exact within its budget)
     gap: float = float("nan")  # certified bound on optimum - objective; NaN: no certificate
+    closed_in: bool = False  # control.close_in: the plan closes in (ours)
 
     def control_of(self, agent: int) -> tuple[int, int]:
         k = self.agents.index(agent)
@@ -43,10 +44,46 @@ class Proposal:
 
 def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Sequence[np.random.Generator],
                  samples: int, iterations: int, neighbours: int, threads: int = 1,
-                 time_limit_s: float | None = 1.0, node_limit: int = 0) -> list[tuple[Solution, float]]:
+                 time_limit_s: float | None = 1.0, node_limit: int = 0,
+                 close_in: float | None = None) -> list[tuple[Solution, float]]:
     """The plan each searching agent (problem row ``rows[k]``, stream ``rngs[k]``) finds, with
     the value it announces (GRASP: its search's own value, which ranks the plans as the paper's
-    all-apply-the-best does)."""
+    all-apply-the-best does).
+
+    ``close_in`` (``control.close_in``, ours): a searcher whose plan is worth less than this
+    solves twice more, with the same solver and stream: the problem without Eq. (13), for the
+    moves, then the levels alone under Eq. (13) with every agent held at its move
+    (:meth:`Problem.fixed_at`). It announces that plan and its value. When Eq. (13) forbids
+    every plan that brings the agents closer, the constrained optimum may spread them away
+    from the target for a sliver of Xi, step after step; the unconstrained optimum takes each
+    agent where its own p_D is highest, and Eq. (13) is then kept by the levels alone (all
+    off is always feasible)."""
+    args = (samples, iterations, neighbours, threads, time_limit_s, node_limit)
+    found = _searches(problem, solver, rows, rngs, *args)
+    if close_in is None or not problem.constraints:
+        return found
+    low = [k for k, (_, value) in enumerate(found) if value < close_in]
+    if not low:
+        return found
+    # deterministic solvers reach the same plan for every searcher: close in once
+    once = solver != "grasp"
+    todo = low[:1] if once else low
+    for k in todo:
+        free, _ = _searches(replace(problem, constraints=False), solver, [rows[k]], [rngs[k]], *args)[0]
+        fixed = problem.fixed_at(problem.slots_of(free.move))
+        sol, value = _searches(fixed, solver, [rows[k]], [rngs[k]], *args)[0]
+        if not sol.feasible:  # cannot happen with an off level; keep the constrained plan
+            continue
+        sol = replace(sol, optimal=False, gap=float("nan"), closed_in=True)  # optimal for the levels, not Eq. (12)
+        for k2 in (low if once else [k]):
+            found[k2] = (sol, value)
+    return found
+
+
+def _searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Sequence[np.random.Generator],
+              samples: int, iterations: int, neighbours: int, threads: int = 1,
+              time_limit_s: float | None = 1.0, node_limit: int = 0) -> list[tuple[Solution, float]]:
+    """:func:`own_searches` without closing in."""
     if solver != "grasp":
         sol = solve(problem, solver, list(rngs), time_limit_s=time_limit_s, node_limit=node_limit)
         return [(sol, sol.objective) for _ in rows]

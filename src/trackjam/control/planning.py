@@ -35,6 +35,7 @@ class PlanSettings:
     belief_samples: int = 0  # control.plan_over: belief -> samples per agent; 0: plan at the point x_bar
     belief_spread: float | None = None  # control.belief_spread: the belief only while a heard spread exceeds it [m]
     belief_at_least: int | None = None  # control.belief_at_least: n on the steps planned over the belief; None: at_least
+    close_in: float | None = None  # control.close_in: below this Xi the team closes in (ours); None: never
 
 
 def position_spread(cov: np.ndarray) -> float:

@@ -82,6 +82,26 @@ class Problem:
             p_s[:, n_planned:] = 0.0
         return replace(self, n_cand=n_cand, p_d=p_d, p_d_samples=p_s)
 
+    def fixed_at(self, cand) -> "Problem":
+        """This problem with every agent i held at its candidate ``cand[i]`` (its one candidate,
+        slot 0): only the levels are left to choose (``control.close_in``, ours)."""
+        i = np.arange(self.n_agents)
+        c = np.asarray(cand, dtype=np.int64)
+        p_s = None if self.p_d_samples is None else np.ascontiguousarray(self.p_d_samples[:, i, c][:, :, None, :])
+        return replace(
+            self, n_cand=np.ones(self.n_agents, dtype=self.n_cand.dtype),
+            move=np.ascontiguousarray(self.move[i, c][:, None]),
+            cand_pos=np.ascontiguousarray(self.cand_pos[i, c][:, None, :]),
+            p_d=np.ascontiguousarray(self.p_d[i, c][:, None, :]),
+            gain=np.ascontiguousarray(self.gain[i[:, None], i[None, :], c[:, None], c[None, :]][:, :, None, None]),
+            p_d_samples=p_s,
+        )
+
+    def slots_of(self, move) -> np.ndarray:
+        """The candidate slot of each agent's displacement index ``move[i]`` (a solution's moves)."""
+        return np.array([int(np.flatnonzero(self.move[i, :self.n_cand[i]] == m)[0]) for i, m in enumerate(move)],
+                        dtype=np.int64)
+
 
 @dataclass(frozen=True)
 class Solution:
@@ -94,6 +114,7 @@ class Solution:
     optimal: bool = False  # proven optimal (only `exact` proves it, when its budget suffices)
     gap: float = float("nan")  # certified bound on (optimum - objective); 0 when optimal, NaN: no certificate
     nodes: int = 0  # branch-and-bound nodes visited (`exact`)
+    closed_in: bool = False  # control.close_in (ours): moves of the plan without Eq. (13), levels chosen under it
 
 
 @njit(cache=True)

@@ -162,6 +162,7 @@ class Simulation:
                 t=t, target_exists=truth.exists, target_detectable=truth.detectable,
                 truth=truth.position, existence=existence, estimate=est, ospa=err, aim=report.x_bar,
                 mode=report.mode, objective=report.objective, optimal=report.optimal, gap=report.gap,
+                closed_in=report.closed_in,
                 target_received_w=float(tx.to_target_w.sum()), solve_s=solve_s, step_s=time.perf_counter() - t0,
             ),
             agents=dict(

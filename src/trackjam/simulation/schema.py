@@ -64,6 +64,8 @@ STEPS: tuple[Column, ...] = (
     Column("objective", "float64", "", "Xi^N_n of the adopted plan at x_bar; NaN unless tracking"),
     Column("optimal", "bool", "", "the adopted plan is proven optimal"),
     Column("gap", "float64", "", "certified bound on optimum - objective; NaN without a certificate"),
+    Column("closed_in", "bool", "", "the adopted plan closed in (`control.close_in`): moves of the plan without "
+           "Eq. (13), levels chosen under it"),
     Column("target_received_w", "float64", "W", "power the target receives, summed over agents, Eq. (10)"),
     Column("solve_s", "float64", "s", "wall time of the control decision"),
     Column("step_s", "float64", "s", "wall time of the whole step"),

@@ -72,6 +72,7 @@ class Decision:
     heard: int  # agents whose predictions of this step it planned with, itself included
     optimal: bool = False  # the adopted plan is proven optimal (exact within its budget)
     gap: float = float("nan")  # its certified gap to the optimum; NaN: no certificate
+    closed_in: bool = False  # the adopted plan closes in (control.close_in, ours)
 
 
 class Exchange:
@@ -180,7 +181,7 @@ class Team:
             move, level = best.control_of(j)
             objective = best.objective if best.mode == "track" else np.nan
             decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)),
-                                    best.optimal, best.gap)
+                                    best.optimal, best.gap, best.closed_in)
         return decisions, time.perf_counter() - t0
 
     def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings,
@@ -229,12 +230,13 @@ class Team:
                 problem = problem.guarded(len(rows))
             found = own_searches(problem, plan.solver, [rows.index(j) for j in members],
                                  [self.agents[j].plan_rng for j in members], plan.samples, plan.iterations,
-                                 plan.neighbours, plan.threads, _remaining(plan.time_limit_s, t0), plan.node_limit)
+                                 plan.neighbours, plan.threads, _remaining(plan.time_limit_s, t0), plan.node_limit,
+                                 plan.close_in)
             mode = "search" if searching else "track"
             for j, (sol, value) in zip(members, found):
                 n = len(rows)
                 out.append(Proposal(j, rows, mode, aim.copy(), sol.move[:n], sol.level[:n], value,
-                                    sol.optimal, sol.gap))
+                                    sol.optimal, sol.gap, sol.closed_in))
         return sorted(out, key=lambda p: p.sender)
 
     def apply(self, decisions: list[Decision], displacements: np.ndarray) -> None:
