@@ -564,7 +564,7 @@ class Control(_Model):
         None,
         description="ours: when the best plan's Xi (Eq. 12) is below this, the team closes in instead: the agents move "
         "as the best plan without Eq. (13) would take them, and transmit at the levels that maximise Xi under Eq. (13) "
-        "at those positions (the same solver, twice more), so a team whose every feasible plan is worth next to nothing "
+        "at those positions (the moves by the solver without Eq. (13), the levels by `exact`), so a team whose every feasible plan is worth next to nothing "
         "does not spread away from the target; in (0, 1]; null: never (the paper); not with `greedy` or "
         "`constraints: false`, which plan without Eq. (13) already",
     )

@@ -51,9 +51,10 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     all-apply-the-best does).
 
     ``close_in`` (``control.close_in``, ours): a searcher whose plan is worth less than this
-    solves twice more, with the same solver and stream: the problem without Eq. (13), for the
+    solves twice more: the problem without Eq. (13) with its own solver and stream, for the
     moves, then the levels alone under Eq. (13) with every agent held at its move
-    (:meth:`Problem.fixed_at`). It announces that plan and its value. When Eq. (13) forbids
+    (:meth:`Problem.fixed_at`), with ``exact`` (L^N level vectors: small, and proven optimal
+    there). It announces that plan and its value. When Eq. (13) forbids
     every plan that brings the agents closer, the constrained optimum may spread them away
     from the target for a sliver of Xi, step after step; the unconstrained optimum takes each
     agent where its own p_D is highest, and Eq. (13) is then kept by the levels alone (all
@@ -71,7 +72,7 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     for k in todo:
         free, _ = _searches(replace(problem, constraints=False), solver, [rows[k]], [rngs[k]], *args)[0]
         fixed = problem.fixed_at(problem.slots_of(free.move))
-        sol, value = _searches(fixed, solver, [rows[k]], [rngs[k]], *args)[0]
+        sol, value = _searches(fixed, "exact", [rows[k]], [rngs[k]], *args)[0]
         if not sol.feasible:  # cannot happen with an off level; keep the constrained plan
             continue
         sol = replace(sol, optimal=False, gap=float("nan"), closed_in=True)  # optimal for the levels, not Eq. (12)
