@@ -146,8 +146,9 @@ def test_holding_compares_the_papers_pointing_with_each_option():
     assert [c.label for c in get_experiment("holding").configurations] == [label for label, _ in HOLDING_VARIANTS]
     assert [s.antenna.pointing for s in ss[:2]] == ["truth", "aim"]
     assert all(s.antenna.pointing == "aim" for s in ss[2:])
-    assert [s.control.plan_over for s in ss] == ["point"] * 3 + ["belief"] + ["point"] * 9 + ["belief"] * 2
-    assert [s.control.belief_spread for s in ss] == [None] * 13 + [8.0, 8.0]  # row 14 alone, then the preset
+    assert [s.control.plan_over for s in ss] == ["point"] * 3 + ["belief"] + ["point"] * 9 + ["belief", "point", "belief"]
+    assert [s.control.belief_spread for s in ss] == [None] * 13 + [8.0, None, 8.0]  # row 14 alone, row 15, the preset
+    assert [s.control.close_in for s in ss] == [None] * 14 + [0.05, None]  # row 15 alone; the preset keeps it off
     assert [s.control.lead for s in ss][4] == 0.5 and ss[5].control.horizon == 5
     assert [s.fusion.share for s in ss[7:11]] == ["scans", "posteriors", "posteriors", "scans"]
     assert [s.filter.visibility is not None for s in ss[7:11]] == [False, True, False, True]

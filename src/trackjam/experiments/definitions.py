@@ -153,6 +153,7 @@ HOLDING_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("aim + estimate at the mode", {"antenna.pointing": "aim", "filter.mode": {"radius": 5.0, "mass": 0.2}}),
     ("aim + plan over the belief while it spreads > 8 m", {"antenna.pointing": "aim", "control.plan_over": "belief",
                                                            "control.belief_spread": 8.0}),
+    ("aim + close in below Xi 0.05", {"antenna.pointing": "aim", "control.close_in": 0.05}),
     ("preset pursuit", PURSUIT_SETTINGS),
 )
 
