@@ -131,3 +131,13 @@ def test_guarded_agents_stay_at_hover_and_are_not_jammed(antenna):
         G = P.guarded(2)
         (sol, _), = _search(G, close_in=1.0)  # every plan is below 1: always closes in
         assert sol.closed_in and sol.feasible and sol.move[2] == 0
+
+
+def test_a_searcher_whose_budget_is_spent_keeps_its_plan(antenna):
+    """`control.time_limit_s` is the budget of the step's three solves: spent by the first, the
+    searcher does not close in."""
+    P = _traps(antenna, 1)[0]
+    (sol, _), = own_searches(P, "exact", [0], [np.random.default_rng(0)], 2000, 20, 4, 1, 1e-12, 0, 1.0)
+    assert not sol.closed_in
+    (sol, _), = own_searches(P, "exact", [0], [np.random.default_rng(0)], 2000, 20, 4, 1, 10.0, 0, 1.0)
+    assert sol.closed_in

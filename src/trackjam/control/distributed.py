@@ -11,6 +11,7 @@ ties to the lowest sender; a plan without a value (the hover fall-back) ranks be
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass, replace
 from typing import Sequence
 
@@ -58,21 +59,35 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     every plan that brings the agents closer, the constrained optimum may spread them away
     from the target for a sliver of Xi, step after step; the unconstrained optimum takes each
     agent where its own p_D is highest, and Eq. (13) is then kept by the levels alone (all
-    off is always feasible)."""
-    args = (samples, iterations, neighbours, threads, time_limit_s, node_limit)
-    found = _searches(problem, solver, rows, rngs, *args)
+    off is always feasible). ``exact``'s ``time_limit_s`` is the budget of all three solves: a
+    searcher that has used it up keeps its plan."""
+    t0 = time.perf_counter()
+    found = _searches(problem, solver, rows, rngs, samples, iterations, neighbours, threads, time_limit_s, node_limit)
     if close_in is None or not problem.constraints:
         return found
     low = [k for k, (_, value) in enumerate(found) if value < close_in]
     if not low:
         return found
+
+    def left() -> float | None:  # exact's budget still unspent [s]; None: none
+        return None if time_limit_s is None else time_limit_s - (time.perf_counter() - t0)
+
+    def spent() -> bool:
+        return time_limit_s is not None and left() <= 0.0
+
+    def search(p: Problem, name: str, k: int) -> tuple[Solution, float]:
+        return _searches(p, name, [rows[k]], [rngs[k]], samples, iterations, neighbours, threads, left(), node_limit)[0]
+
     # deterministic solvers reach the same plan for every searcher: close in once
     once = solver != "grasp"
     todo = low[:1] if once else low
     for k in todo:
-        free, _ = _searches(replace(problem, constraints=False), solver, [rows[k]], [rngs[k]], *args)[0]
-        fixed = problem.fixed_at(problem.slots_of(free.move))
-        sol, value = _searches(fixed, "exact", [rows[k]], [rngs[k]], *args)[0]
+        if spent():
+            break
+        free, _ = search(replace(problem, constraints=False), solver, k)
+        if spent():
+            break
+        sol, value = search(problem.fixed_at(problem.slots_of(free.move)), "exact", k)
         if not sol.feasible:  # cannot happen with an off level; keep the constrained plan
             continue
         sol = replace(sol, optimal=False, gap=float("nan"), closed_in=True)  # optimal for the levels, not Eq. (12)
