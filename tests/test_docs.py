@@ -191,3 +191,25 @@ def test_the_report_threshold_rescoring_gives_each_runs_own_quality_at_the_prese
     table = module.table({s: logged[s] for s in range(1, 151)})
     assert table[3] == "| 0.5 (the preset) | 56.4 % | 3.2 % | 45 of 150 | 4.43 |"
     assert len(table) == 3 + len(module.THRESHOLDS)
+
+
+def test_the_faster_agents_runs_are_reproduced_and_give_the_docs_tables(tmp_path):
+    """docs/faster_agents.py: a committed run reruns to the same row, and its two tables, drawn
+    from the committed runs, are the ones docs/holding.md shows ("Faster agents")."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("faster_agents", ROOT / "docs" / "faster_agents.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    runs = module.read()
+    assert sorted(runs) == sorted(module.VARIANTS)
+    for variant, rows in runs.items():
+        first, last = module.SEEDS.get(variant, (1, 300))
+        assert sorted(rows) == list(range(first, last + 1)), variant
+    for job in ((2, "7 m, close_in 0.05"), (3, "7 m")):
+        assert module.one(job) == runs[job[1]][job[0]]
+    assert runs["7 m, close_in 0.05"][2]["closed_steps"] > 0 and runs["7 m"][3]["closed_steps"] == 0
+    holding = (ROOT / "docs" / "holding.md").read_text()
+    lines = module.summary(runs) + module.table(runs)
+    assert [line for line in lines if line not in holding] == []
+    assert module.figure(runs, tmp_path / "faster.png").stat().st_size > 10_000

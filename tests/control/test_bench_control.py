@@ -18,3 +18,13 @@ def test_budget_bench_reports_shares_and_gaps_in_range():
     assert 0.0 <= row["gap_median"] <= row["gap_max"] <= 1.0
     if row["proven_optimal"] == 1.0:
         assert row["gap_max"] == 0.0
+
+
+def test_close_in_bench_times_the_instances_that_closed_in():
+    from trackjam.benchmarks.control import bench_close_in
+
+    row = bench_close_in(instances=30, seed=0)
+    assert row["controls"] == 105 and 0 < row["closed_in"] <= 30  # some of these instances close in
+    for way in ("without", "with"):
+        t = row[way]
+        assert 0 < t["median_ms"] <= t["p95_ms"] <= t["max_ms"]

@@ -24,7 +24,8 @@ from trackjam.simulation.build import antenna_model, load_scenario
 from trackjam.world.moves import displacement_set
 
 #: displacement sets by their number of controls: (radial steps [m], N_phi, N_theta)
-CONTROL_CASES = {79: ([1.0, 3.0, 5.0], 8, 8), 175: ([1.0, 3.0, 5.0], 16, 8), 11: ([3.0], 4, 8)}
+CONTROL_CASES = {79: ([1.0, 3.0, 5.0], 8, 8), 175: ([1.0, 3.0, 5.0], 16, 8), 11: ([3.0], 4, 8),
+                 105: ([1.0, 3.0, 5.0, 7.0], 8, 8)}
 OPENING_ANGLES_DEG = (60.0, 80.0, 100.0, 120.0)
 LOW, HIGH = np.zeros(3), np.full(3, 100.0)
 
@@ -252,6 +253,36 @@ def bench_assignment(n_targets: int = 2, n_agents: int = 4, instances: int = 200
             "proven_optimal": float(np.mean(proven))}
 
 
+def bench_close_in(instances: int = 200, seed: int = 0, threshold: float = 0.05, n_controls: int = 105,
+                   radius: float = 20.0) -> dict:
+    """``control.close_in``: the exact step (problem build + the searches of
+    :func:`trackjam.control.distributed.own_searches`) with and without closing in, on the
+    paper-like instances (agents in a ``radius`` m ball around the aim) with 7 m steps (105
+    controls), the control set closing in is for. Reports how many instances closed in (their
+    constrained optimum was worth Xi < ``threshold``) and the times of those, both ways."""
+    from trackjam.control.distributed import own_searches
+
+    _warm()
+    D = displacement_set(*CONTROL_CASES[n_controls])
+    rng = np.random.default_rng(seed)
+    antennas = {a: paper_antenna(a) for a in OPENING_ANGLES_DEG}
+    plain_ms, closed_ms, closed = [], [], 0
+    for _ in range(instances):
+        u, x, a = draw_instance(rng, radius=radius)
+        times = []
+        for tau in (None, threshold):
+            t = time.perf_counter()
+            P = build_problem(u, x, D, antennas[a], LOW, HIGH, 2, True)
+            (sol, _), = own_searches(P, "exact", [0], [rng], 0, 0, 2, 1, 1.0, 0, tau)
+            times.append(1e3 * (time.perf_counter() - t))
+        if sol.closed_in:
+            closed += 1
+            plain_ms.append(times[0])
+            closed_ms.append(times[1])
+    return {"controls": n_controls, "instances": instances, "threshold": threshold, "radius_m": radius,
+            "closed_in": closed, "without": _stats(plain_ms or [np.nan]), "with": _stats(closed_ms or [np.nan])}
+
+
 def run(quick: bool = True, seed: int = 0) -> dict:
     """All the control benchmarks; ``quick`` keeps the total well under 2 minutes."""
     if quick:
@@ -265,6 +296,7 @@ def run(quick: bool = True, seed: int = 0) -> dict:
             "exact_belief_32": bench_belief(32, 20, seed),
             "assignment_k2_n4_sum": bench_assignment(2, 4, 40, seed, "sum"),
             "assignment_k2_n4_min": bench_assignment(2, 4, 40, seed, "min"),
+            "exact_close_in": bench_close_in(40, seed),
         }
     return {
         "exact_79": bench_exact(79, 1000, seed),
@@ -279,6 +311,7 @@ def run(quick: bool = True, seed: int = 0) -> dict:
         "assignment_k2_n4_sum": bench_assignment(2, 4, 200, seed, "sum"),
         "assignment_k2_n4_min": bench_assignment(2, 4, 200, seed, "min"),
         "assignment_k3_n5_sum": bench_assignment(3, 5, 100, seed, "sum"),
+        "exact_close_in": bench_close_in(200, seed),
     }
 
 
