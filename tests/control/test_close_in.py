@@ -141,3 +141,11 @@ def test_a_searcher_whose_budget_is_spent_keeps_its_plan(antenna):
     assert not sol.closed_in
     (sol, _), = own_searches(P, "exact", [0], [np.random.default_rng(0)], 2000, 20, 4, 1, 10.0, 0, 1.0)
     assert sol.closed_in
+
+
+def test_grasp_closes_in_whatever_its_own_search_took(antenna):
+    """`control.time_limit_s` bounds `exact`, not GRASP: a GRASP searcher still closes in after a
+    search longer than the budget, the levels' exact solve getting the budget to itself."""
+    P = _traps(antenna, 1, displacements=tiny_displacements(), spread=25.0)[0]
+    (sol, _), = own_searches(P, "grasp", [0], [np.random.default_rng(0)], 2000, 20, 4, 1, 1e-12, 0, 1.0)
+    assert sol.closed_in

@@ -59,8 +59,9 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     every plan that brings the agents closer, the constrained optimum may spread them away
     from the target for a sliver of Xi, step after step; the unconstrained optimum takes each
     agent where its own p_D is highest, and Eq. (13) is then kept by the levels alone (all
-    off is always feasible). ``exact``'s ``time_limit_s`` is the budget of all three solves: a
-    searcher that has used it up keeps its plan."""
+    off is always feasible). With ``exact``, ``time_limit_s`` is the budget of all three solves:
+    a searcher that has used it up keeps its plan; with GRASP, which it does not bound, it is
+    the budget of the levels' solve alone."""
     t0 = time.perf_counter()
     found = _searches(problem, solver, rows, rngs, samples, iterations, neighbours, threads, time_limit_s, node_limit)
     if close_in is None or not problem.constraints:
@@ -70,7 +71,9 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
         return found
 
     def left() -> float | None:  # exact's budget still unspent [s]; None: none
-        return None if time_limit_s is None else time_limit_s - (time.perf_counter() - t0)
+        if time_limit_s is None or solver != "exact":
+            return time_limit_s
+        return time_limit_s - (time.perf_counter() - t0)
 
     def spent() -> bool:
         return time_limit_s is not None and left() <= 0.0
