@@ -3,8 +3,9 @@ objective"): the preset `pursuit` with the paper's 5 m steps and with 7 m steps
 (`agents.radial_steps: [1, 3, 5, 7]`), each with and without closing in, run seed by seed on the
 same truths; then the paired table of the docs.
 
-Run: python docs/faster_agents.py [FIRST LAST]   (seeds, by default 1 300; 2 spawned workers;
-                                                  writes docs/experiments/faster/runs.csv)
+Run: python docs/faster_agents.py [FIRST LAST [VARIANT ...]]   (seeds, by default 1 300; every
+         variant, or those named; 2 spawned workers; writes their rows into
+         docs/experiments/faster/runs.csv, keeping the others)
      python docs/faster_agents.py table            (the two tables, from the committed runs)
      python docs/faster_agents.py figure           (docs/faster_agents.png, from the committed runs)"""
 
@@ -42,13 +43,13 @@ PAIRS = (("7 m", "5 m"), ("7 m, close_in 0.05", "7 m"), ("7 m, close_in 0.05", "
          ("5 m, close_in 0.025", "5 m"))
 
 
-def one(job: tuple[int, str], **extra) -> dict:
+def one(job: tuple[int, str]) -> dict:
     """Variant ``job[1]`` of the preset on seed ``job[0]``: its run's summary, as one row."""
     from trackjam.config.loading import load_scenario
     from trackjam.simulation.loop import simulate
 
     seed, variant = job
-    r = simulate(load_scenario("pursuit", seed=seed, **VARIANTS[variant], **extra))
+    r = simulate(load_scenario("pursuit", seed=seed, **VARIANTS[variant]))
     s = r.summary
     return {"seed": seed, "variant": variant, "held": s["held_share"], "false_track": s["false_track_share"],
             "reacquired": bool(s["reacquired_after_last_spell"]), "ospa": s["ospa_mean"],
@@ -149,17 +150,27 @@ def figure(runs: dict[str, dict[int, dict]], out: Path = FIGURE) -> Path:
     return out
 
 
-def main(first: int, last: int) -> None:
-    jobs = [(s, v) for v in VARIANTS for s in range(max(first, SEEDS.get(v, (first, last))[0]),
+def main(first: int, last: int, variants: list[str] | None = None) -> None:
+    """Run every variant (or those named) on seeds ``first``..``last`` (within its own seed range)
+    and write them into the runs file, in place of those runs' earlier rows; the others are kept."""
+    unknown = sorted(set(variants or ()) - set(VARIANTS))
+    if unknown:
+        sys.exit(f"unknown variant(s) {unknown}; expected some of {list(VARIANTS)}")
+    jobs = [(s, v) for v in (variants or VARIANTS) for s in range(max(first, SEEDS.get(v, (first, last))[0]),
                                                     min(last, SEEDS.get(v, (first, last))[1]) + 1)]
+    runs = read() if RUNS.exists() else {}
+    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_numba_thread) as pool:
+        for k, row in enumerate(pool.map(one, jobs), start=1):
+            runs.setdefault(row["variant"], {})[row["seed"]] = row
+            print(f"{k}/{len(jobs)} {row['variant']} seed {row['seed']}: held {row['held']:.3f}", flush=True)
     RUNS.parent.mkdir(parents=True, exist_ok=True)
-    with ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_numba_thread) as pool, \
-            open(RUNS, "w", newline="") as f:
+    partial = RUNS.with_suffix(".partial")
+    with open(partial, "w", newline="") as f:
         w = csv.DictWriter(f, COLUMNS)
         w.writeheader()
-        for k, row in enumerate(pool.map(one, jobs), start=1):
-            w.writerow(row)
-            print(f"{k}/{len(jobs)} {row['variant']} seed {row['seed']}: held {row['held']:.3f}", flush=True)
+        for v in VARIANTS:
+            w.writerows(runs.get(v, {})[s] for s in sorted(runs.get(v, {})))
+    partial.replace(RUNS)
     print("\n".join(summary(read()) + [""] + table(read())))
     print(figure(read()))
 
@@ -170,4 +181,4 @@ if __name__ == "__main__":
     elif sys.argv[1:2] == ["figure"]:
         print(figure(read()))
     else:
-        main(*(map(int, sys.argv[1:3]) if len(sys.argv) > 2 else (1, 300)))
+        main(*(map(int, sys.argv[1:3]) if len(sys.argv) > 2 else (1, 300)), sys.argv[3:] or None)

@@ -28,3 +28,4 @@ def test_close_in_bench_times_the_instances_that_closed_in():
     for way in ("without", "with"):
         t = row[way]
         assert 0 < t["median_ms"] <= t["p95_ms"] <= t["max_ms"]
+    assert row["added_median_ms"] == row["added_median_ms"]  # a number: the instances that closed in were timed

@@ -144,7 +144,6 @@ def test_a_team_with_a_lead_plans_and_points_half_a_step_ahead_of_the_papers_x_b
     assert np.allclose(rec.agents["point"], rec.step["aim"])  # pointing: aim steers every antenna there
 
 
-
 @pytest.mark.parametrize("override, why", [("control.solver=greedy", "control.solver `greedy`"),
                                            ("control.constraints=false", "control.constraints `false`")])
 def test_closing_in_is_refused_where_the_plan_ignores_eq_13_already(override, why):

@@ -562,11 +562,14 @@ class Control(_Model):
     )
     close_in: Real(gt=0, le=1) | None = Field(
         None,
-        description="ours: when the best plan's Xi (Eq. 12) is below this, the team closes in instead: the agents move "
-        "as the best plan without Eq. (13) would take them, and transmit at the levels that maximise Xi under Eq. (13) "
-        "at those positions (the moves by the solver without Eq. (13), the levels by `exact`), so a team whose every feasible plan is worth next to nothing "
-        "does not spread away from the target; in (0, 1]; null: never (the paper); not with `greedy` or "
-        "`constraints: false`, which plan without Eq. (13) already",
+        description="ours: when the best plan's value (Xi of Eq. 12, or its mean over the belief's samples under "
+        "`plan_over: belief`) is below this, the team closes in instead: the agents move as the best plan "
+        "without Eq. (13) would take them, and transmit at the levels that maximise that value under Eq. "
+        "(13) at those positions (the moves by the solver without Eq. (13), the levels by `exact`; with "
+        "`exact` the three solves share `control.time_limit_s`), so a team whose every feasible plan is "
+        "worth next to nothing does not spread away from the target; the steps log's `closed_in` marks "
+        "those steps; in (0, 1]; null: never (the paper). Not with `control.solver: greedy` or "
+        "`control.constraints: false`, which plan without Eq. (13) already, nor with several targets",
     )
 
 

@@ -52,10 +52,11 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     all-apply-the-best does).
 
     ``close_in`` (``control.close_in``, ours): a searcher whose plan is worth less than this
-    solves twice more: the problem without Eq. (13) with its own solver and stream, for the
-    moves, then the levels alone under Eq. (13) with every agent held at its move
-    (:meth:`Problem.fixed_at`), with ``exact`` (L^N level vectors: small, and proven optimal
-    there). It announces that plan and its value. When Eq. (13) forbids
+    (its announced value: Xi, or its mean over the belief's samples) solves twice more: the
+    problem without Eq. (13) with its own solver and stream, for the moves, then, unless those
+    are its plan's moves already, the levels alone under Eq. (13) with every agent held at its
+    move (:meth:`Problem.fixed_at`), with ``exact`` (L^N level vectors: small, and proven
+    optimal there). It announces that plan and its value. When Eq. (13) forbids
     every plan that brings the agents closer, the constrained optimum may spread them away
     from the target for a sliver of Xi, step after step; the unconstrained optimum takes each
     agent where its own p_D is highest, and Eq. (13) is then kept by the levels alone (all
@@ -78,24 +79,30 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     def spent() -> bool:
         return time_limit_s is not None and left() <= 0.0
 
-    def search(p: Problem, name: str, k: int) -> tuple[Solution, float]:
-        return _searches(p, name, [rows[k]], [rngs[k]], samples, iterations, neighbours, threads, left(), node_limit)[0]
-
-    # deterministic solvers reach the same plan for every searcher: close in once
-    once = solver != "grasp"
-    todo = low[:1] if once else low
-    for k in todo:
-        if spent():
-            break
-        free, _ = search(replace(problem, constraints=False), solver, k)
-        if spent():
-            break
-        sol, value = search(problem.fixed_at(problem.slots_of(free.move)), "exact", k)
-        if not sol.feasible:  # cannot happen with an off level; keep the constrained plan
+    if spent():
+        return found
+    # the moves: the problem without Eq. (13), GRASP's low searchers side by side, each with its
+    # own stream; a deterministic solver reaches one plan for all of them
+    free_problem = replace(problem, constraints=False)
+    budget = (samples, iterations, neighbours, threads)
+    if solver == "grasp":
+        frees = _searches(free_problem, solver, [rows[k] for k in low], [rngs[k] for k in low], *budget, left(),
+                          node_limit)
+    else:
+        frees = _searches(free_problem, solver, [rows[low[0]]], [rngs[low[0]]], *budget, left(), node_limit) * len(low)
+    levels: dict[bytes, tuple[Solution, float]] = {}  # the levels' solve, once per distinct moves
+    for k, (free, _) in zip(low, frees):
+        if np.array_equal(free.move, found[k][0].move):  # the plan already moves so: closing in changes nothing
             continue
-        sol = replace(sol, optimal=False, gap=float("nan"), closed_in=True)  # optimal for the levels, not Eq. (12)
-        for k2 in (low if once else [k]):
-            found[k2] = (sol, value)
+        key = free.move.tobytes()
+        if key not in levels:
+            if spent():
+                break
+            levels[key] = _searches(problem.fixed_at(problem.slots_of(free.move)), "exact", [rows[k]], [rngs[k]],
+                                    *budget, left(), node_limit)[0]
+        sol, value = levels[key]
+        if sol.feasible:  # always, with an off level
+            found[k] = (replace(sol, optimal=False, gap=float("nan"), closed_in=True), value)  # optimal for the levels only
     return found
 
 
