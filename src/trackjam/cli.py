@@ -311,6 +311,8 @@ def run(
     add("mean transmit power [W]", f"{m['transmit_w_mean']:.3g}")
     for label, value in _quality_rows(m):
         add(label, value)
+    if s.control.close_in is not None:
+        add(f"steps closed in (control.close_in {s.control.close_in:g})", str(m["closed_in_steps"]))
     add("time per step [ms]", f"{1000 * m['step_s_mean']:.1f}")
     if m.get("downed_at") is not None:
         add("target downed at step", str(m["downed_at"]))

@@ -37,6 +37,7 @@ def summarise(steps: dict, agents: dict, *, name: str, seed: int, n_agents: int,
         "step_s_mean": float(np.mean(steps["step_s"])),
         # a confirmed report is not a tracked target: held_steps says which were on it
         "confirmed_steps": int(np.sum(steps["existence"] > CONFIRM)),
+        "closed_in_steps": int(np.sum(steps["closed_in"])) if "closed_in" in steps else 0,  # control.close_in
         "downed_at": downed_at,
         **track_quality(steps, gate),
         **ceiling.summary(),
