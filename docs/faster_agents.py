@@ -16,9 +16,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 from trackjam.experiments.backends import one_numba_thread  # the pool's workers: one numba thread each
+from trackjam.experiments.summary import count_ci95, mean_ci95, sign_test
 
 HERE = Path(__file__).parent
 RUNS = HERE / "experiments" / "faster" / "runs.csv"
@@ -68,14 +68,8 @@ def read(path: Path = RUNS) -> dict[str, dict[int, dict]]:
     return out
 
 
-def _ci(x) -> tuple[float, float]:
-    """Mean and half-width of its 95 % t-interval."""
-    x = np.asarray(x, dtype=float)
-    return float(x.mean()), float(stats.t.ppf(0.975, len(x) - 1) * x.std(ddof=1) / np.sqrt(len(x)))
-
-
 def _t(x: np.ndarray, digits: int = 1) -> str:
-    m, h = _ci(x)
+    m, h = mean_ci95(x)
     return f"{m:+.{digits}f} ± {h:.{digits}f}"
 
 
@@ -88,7 +82,7 @@ def summary(runs: dict[str, dict[int, dict]]) -> list[str]:
         if v not in runs:
             continue
         rows = [runs[v][s] for s in sorted(runs[v])]
-        held, false, ospa = (_ci([scale * r[k] for r in rows]) for k, scale in
+        held, false, ospa = (mean_ci95([scale * r[k] for r in rows]) for k, scale in
                              (("held", 100.0), ("false_track", 100.0), ("ospa", 1.0)))
         lines.append(f"| {v} | {rows[0]['seed']}-{rows[-1]['seed']} | {held[0]:.1f} ± {held[1]:.1f} % | "
                      f"{false[0]:.1f} ± {false[1]:.1f} % | {sum(r['reacquired'] for r in rows)} of {len(rows)} | "
@@ -107,11 +101,10 @@ def table(runs: dict[str, dict[int, dict]]) -> list[str]:
             continue
         A, B = runs[a], runs[b]
         d = {k: np.array([A[s][k] - B[s][k] for s in seeds]) for k in ("held", "false_track", "ospa")}
-        ra, rb = np.array([A[s]["reacquired"] for s in seeds]), np.array([B[s]["reacquired"] for s in seeds])
-        g, lost = int(np.sum(ra & ~rb)), int(np.sum(~ra & rb))
-        p = stats.binomtest(g, g + lost).pvalue if g + lost else 1.0
+        g, lost, p = sign_test((B[s]["reacquired"], A[s]["reacquired"]) for s in seeds)  # gained: A and not B
+        n_a, n_b = (sum(R[s]["reacquired"] for s in seeds) for R in (A, B))
         lines.append(f"| {a} | {b} | {seeds[0]}-{seeds[-1]} | {_t(100 * d['held'])} | {_t(100 * d['false_track'])} | "
-                     f"{_t(d['ospa'], 2)} | {int(ra.sum())} against {int(rb.sum())}: {g} / {lost} (p = {p:.2g}) |")
+                     f"{_t(d['ospa'], 2)} | {n_a} against {n_b}: {g} / {lost} (p = {p:.2g}) |")
     return lines
 
 
@@ -131,13 +124,12 @@ def figure(runs: dict[str, dict[int, dict]], out: Path = FIGURE) -> Path:
                               ("held (share of detectable steps)", "held again after the occlusion (share of seeds)",
                                "mean OSPA [m]")):
         for yi, v, c in zip(y, SHOWN, colours):
-            x = np.array([float(runs[v][s][key]) for s in seeds])
-            m = x.mean()
+            x = [float(runs[v][s][key]) for s in seeds]
             if key == "reacquired":
-                ci = stats.binomtest(int(x.sum()), len(x)).proportion_ci()
-                lo, hi = ci.low, ci.high
+                k, n, lo, hi = count_ci95(x)
+                m = k / n
             else:
-                h = _ci(x)[1]
+                m, h = mean_ci95(x)
                 lo, hi = m - h, m + h
             ax.barh(yi, m, color=c, alpha=0.8)
             ax.errorbar(m, yi, xerr=[[m - lo], [hi - m]], color="black", capsize=3, lw=1)

@@ -93,7 +93,7 @@ def read_log(first: int, last: int) -> dict[int, list[dict]]:
 
 def table(rows: dict[int, list[dict]]) -> list[str]:
     """Markdown rows: each threshold paired against 0.5 over the seeds (mean ± 95 % t-interval)."""
-    from scipy import stats
+    from trackjam.experiments.summary import mean_ci95
 
     seeds = sorted(rows)
     scored = {th: [score(sorted(rows[s], key=lambda r: r["t"]), th) for s in seeds] for th in THRESHOLDS}
@@ -102,9 +102,8 @@ def table(rows: dict[int, list[dict]]) -> list[str]:
         return np.array([float(x[key]) for x in scored[th]])
 
     def paired(th, key, scale):
-        d = (arr(th, key) - arr(0.5, key)) * scale
-        half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
-        return f"{d.mean():+.2f} ± {half:.2f}" if scale == 100 else f"{d.mean():+.3f} ± {half:.3f}"
+        mean, half = mean_ci95((arr(th, key) - arr(0.5, key)) * scale)
+        return f"{mean:+.2f} ± {half:.2f}" if scale == 100 else f"{mean:+.3f} ± {half:.3f}"
 
     out = [f"seeds {seeds[0]}-{seeds[-1]}",
            "| report while P(exists and visible) > | held | false track | re-acquired | mean OSPA [m] |",
