@@ -82,14 +82,10 @@ def own_searches(problem: Problem, solver: str, rows: Sequence[int], rngs: Seque
     if spent():
         return found
     # the moves: the problem without Eq. (13), GRASP's low searchers side by side, each with its
-    # own stream; a deterministic solver reaches one plan for all of them
-    free_problem = replace(problem, constraints=False)
+    # own stream (a deterministic solver solves it once for all of them)
     budget = (samples, iterations, neighbours, threads)
-    if solver == "grasp":
-        frees = _searches(free_problem, solver, [rows[k] for k in low], [rngs[k] for k in low], *budget, left(),
-                          node_limit)
-    else:
-        frees = _searches(free_problem, solver, [rows[low[0]]], [rngs[low[0]]], *budget, left(), node_limit) * len(low)
+    frees = _searches(replace(problem, constraints=False), solver, [rows[k] for k in low], [rngs[k] for k in low],
+                      *budget, left(), node_limit)
     levels: dict[bytes, tuple[Solution, float]] = {}  # the levels' solve, once per distinct moves
     for k, (free, _) in zip(low, frees):
         if np.array_equal(free.move, found[k][0].move):  # the plan already moves so: closing in changes nothing
