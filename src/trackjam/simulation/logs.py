@@ -31,7 +31,7 @@ class RunLog:
         self.meas: dict[str, list] = {c.name: [] for c in MEASUREMENTS}
 
     def add_step(self, *, t, target_exists, target_detectable, truth, existence, estimate, ospa, aim,
-                 mode, objective, optimal, gap, target_received_w, solve_s, step_s, closed_in=False) -> None:
+                 mode, objective, optimal, gap, closed_in, target_received_w, solve_s, step_s) -> None:
         row = {"t": t, "target_exists": bool(target_exists), "target_detectable": bool(target_detectable)}
         row |= _xyz("truth", truth)
         row["existence"] = float(existence)
@@ -39,8 +39,8 @@ class RunLog:
         row["ospa"] = float(ospa)
         row |= _xyz("aim", aim)
         row["mode"] = mode
-        row |= {"objective": float(objective), "optimal": bool(optimal), "gap": float(gap), "closed_in": bool(closed_in),
-                "target_received_w": float(target_received_w),
+        row |= {"objective": float(objective), "optimal": bool(optimal), "gap": float(gap),
+                "closed_in": bool(closed_in), "target_received_w": float(target_received_w),
                 "solve_s": float(solve_s), "step_s": float(step_s)}
         self.steps.append(row)
 
