@@ -163,13 +163,15 @@ def main(first: int, last: int, variants: list[str] | None = None) -> None:
         for v in VARIANTS:
             w.writerows(runs.get(v, {})[s] for s in sorted(runs.get(v, {})))
     partial.replace(RUNS)
-    print("\n".join(summary(read()) + [""] + table(read())))
-    print(figure(read()))
+    runs = read()  # as written, so the tables are those a later `table` prints
+    print("\n".join(summary(runs) + [""] + table(runs)))
+    print(figure(runs))
 
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["table"]:
-        print("\n".join(summary(read()) + [""] + table(read())))
+        runs = read()
+        print("\n".join(summary(runs) + [""] + table(runs)))
     elif sys.argv[1:2] == ["figure"]:
         print(figure(read()))
     else:
