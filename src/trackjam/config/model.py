@@ -562,7 +562,8 @@ class Control(_Model):
     )
     close_in: Real(gt=0, le=1) | None = Field(
         None,
-        description="ours: when the best plan's value (Xi of Eq. 12, or its mean over the belief's samples under "
+        description="tau, a threshold on Xi (ours; no symbol in the paper): when the best plan's value (Xi of "
+        "Eq. 12, or its mean over the belief's samples under "
         "`plan_over: belief`) is below this, the team closes in instead: the agents move as the best plan "
         "without Eq. (13) would take them, and transmit at the levels that maximise that value under Eq. "
         "(13) at those positions (the moves by the solver without Eq. (13), the levels by `exact`; with "
