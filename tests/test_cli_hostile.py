@@ -324,12 +324,98 @@ def test_a_bad_thread_count_in_the_environment_is_refused_alone_before_the_warni
     assert r.stderr == ("trackjam: error: TRACKJAM_THREADS='0': must be a whole number of threads in [1, 1024] "
                         "(or unset: one per agent up to the CPU count)\n")
     assert not out.exists()
-    # a scenario that sets control.grasp.threads does not read it
+    # a scenario that sets control.grasp.threads does not read it, and is refused all the same:
+    # every command refuses a malformed environment, so that `validate` says what `run` would
     r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--set",
                         "filter.particles=100", "--set", "filter.birth_particles=20", "--set", "control.grasp.threads=1",
                         "--no-figures", "--out", str(out)],
                        capture_output=True, text=True, env={**os.environ, "TRACKJAM_THREADS": "0"})
-    assert r.returncode == 0, r.stderr
+    assert _one_line(r).startswith("trackjam: error: TRACKJAM_THREADS='0': must be a whole number")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("variable", ["TRACKJAM_THREADS", "NUMBA_NUM_THREADS"])
+@pytest.mark.parametrize("args", [["validate", "paper-fig3"], ["show-config", "paper-fig3"], ["presets"],
+                                  ["bench", "--quick", "--only", "control"],
+                                  ["experiment", "table1", "--trials", "1", "--steps", "1", "--workers", "1",
+                                   "--out", "{tmp}/e"],
+                                  ["run", "paper-fig3", "--set", "steps=1", "--out", "{tmp}/r"]])
+@pytest.mark.parametrize("value", ["0", "-1", "abc"])
+def test_every_command_refuses_a_bad_thread_count_in_the_environment(tmp_path, variable, args, value):
+    # validate, experiment and bench took a TRACKJAM_THREADS that run refused (exit 0, no word);
+    # NUMBA_NUM_THREADS=0 or -1 was a traceback from inside numba, "abc" a warning with one
+    import os
+
+    r = subprocess.run([sys.executable, "-m", "trackjam", *[a.format(tmp=tmp_path) for a in args]],
+                       capture_output=True, text=True, env={**os.environ, variable: value})
+    assert _one_line(r) == (f"trackjam: error: {variable}={value!r}: must be a whole number of threads in [1, 1024] "
+                            f"(or unset: {'one per agent up to the CPU count' if variable == 'TRACKJAM_THREADS' else 'numba' + chr(39) + 's default, the CPU count'})")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_good_thread_count_in_the_environment_is_taken():
+    import os
+
+    for variable in ("TRACKJAM_THREADS", "NUMBA_NUM_THREADS"):
+        r = subprocess.run([sys.executable, "-m", "trackjam", "validate", "paper-fig3"], capture_output=True, text=True,
+                           env={**os.environ, variable: "1"})
+        assert r.returncode == 0 and r.stdout.startswith("ok"), r.stderr
+
+
+@pytest.mark.parametrize("args", [["run", "paper-fig3", "--set", "steps=1", "--out", ""],
+                                  ["experiment", "table1", "--trials", "1", "--steps", "1", "--out", ""],
+                                  ["bench", "--quick", "--only", "control", "--json", ""]])
+def test_an_empty_output_path_is_refused_not_read_as_the_current_folder(tmp_path, args):
+    # Path("") is ".": `run --out ''` wrote the run's files into the current folder without a word
+    line = _one_line(_trackjam(*args, cwd=tmp_path))
+    option = args[-2]
+    assert line.startswith(f"trackjam: error: {option} '': an empty path; name a ")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_run_and_an_experiment_write_into_a_folder_whose_name_is_not_utf8(tmp_path):
+    # pyarrow refused such a path after the whole run: a traceback and a folder holding only
+    # scenario.yaml; the Parquet files are now written through Python's own file objects
+    import os
+
+    def _trackjam(*args):  # the output echoes the path's bytes as they are
+        return subprocess.run([sys.executable, "-m", "trackjam", *args], capture_output=True, text=True,
+                              errors="surrogateescape")
+
+    base = os.fsencode(tmp_path)
+    run = os.fsdecode(base + b"/run\xff")
+    r = _trackjam("run", "paper-fig3", "--set", "steps=2", "--set", "control.solver=exact", "--no-figures",
+                  "--out", run)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert sorted(os.listdir(base + b"/run\xff")) == [b"agents.parquet", b"measurements.parquet", b"scenario.yaml",
+                                                        b"steps.parquet", b"summary.json"]
+    exp = os.fsdecode(base + b"/exp\xff")
+    for _ in range(2):  # the second reads the trials back
+        r = _trackjam("experiment", "constraints", "--trials", "1", "--steps", "1", "--workers", "1", "--out", exp)
+        assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert "all trials were already in OUT" in r.stdout
+    assert len(os.listdir(base + b"/exp\xff/trials")) == 2
+
+
+def test_a_reader_that_stops_early_does_not_end_the_run(tmp_path):
+    # `trackjam run ... | head -1`: the first progress line after head left raised BrokenPipeError,
+    # exit 1 without a word, and no file was written
+    out = tmp_path / "r"
+    p = subprocess.Popen([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=3", "--no-figures",
+                          "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.readline()
+    p.stdout.close()  # the reader is gone
+    err = p.stderr.read().decode()
+    assert p.wait() == 0 and "Traceback" not in err, err
+    assert err.splitlines()[-1] == ("trackjam: note: the standard output was closed early (broken pipe); "
+                                    "the command still ran to its end")
+    assert sorted(f.name for f in out.iterdir()) == ["agents.parquet", "measurements.parquet", "scenario.yaml",
+                                                     "steps.parquet", "summary.json"]
+
+
+def test_a_command_whose_reader_stays_says_no_note():
+    r = _trackjam("presets")
+    assert r.returncode == 0 and r.stderr == ""
 
 
 @pytest.mark.parametrize("shape", ["dangling", "loop", "dangling parent"])

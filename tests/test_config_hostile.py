@@ -543,3 +543,56 @@ def test_a_float_key_past_any_physics_is_refused_naming_it(key, value):
     overrides = [needs[section]] if section in needs else []
     message = _refused(base, overrides + [f"{key}={value}"])
     assert f": {key}: " in message, message
+
+
+def test_yaml_merge_keys_merge_and_the_keys_given_win(tmp_path):
+    # `<<: *base` was "could not determine a constructor for the tag ...merge", naming no key
+    f = tmp_path / "s.yaml"
+    f.write_text("area:\n  <<: {low: [0, 0, 0], high: [50, 50, 50]}\n  high: [60, 60, 60]\n")
+    s = load_scenario(str(f))
+    assert list(s.area.low) == [0, 0, 0] and list(s.area.high) == [60, 60, 60]
+    f.write_text("area:\n  low: [0, 0, 0]\n  low: [1, 1, 1]\n  high: [50, 50, 50]\n")  # a key given twice still is not
+    with pytest.raises(ConfigError, match=r"duplicate key 'low' \(line 3\)"):
+        load_scenario(str(f))
+
+
+def test_a_yaml_set_is_refused_not_read_as_a_list():
+    item = "agents.radial_steps=!!set {1: null, 5: null}"
+    assert _refused("paper-fig3", [item]) == f"--set {item}: not valid YAML: a set (!!set) is not a scenario value; give a list (line 1)"
+
+
+def test_a_set_item_that_is_not_utf8_is_refused_naming_the_set():
+    # the shell's bytes: `--set $'st\xffeps=1'` blamed the preset for "Input should be a valid string"
+    message = _refused("paper-fig3", ["st\udcffeps=1"])
+    assert message == "--set st\\udcffeps=1: not valid UTF-8 text (a key or a value holds bytes that are not UTF-8)"
+
+
+@pytest.mark.parametrize("overrides, key", [
+    (["agents.initial=[[10,10,10]]"], "control.at_least (2) exceeds the number of agents in agents.initial (1)"),
+    (["agents.initial=[[10,10,10],[11,11,11]]", "control.belief_at_least=2", "control.at_least=1",
+      "comms.failures=[{agent: 2, step: 1, mode: breakdown}]"], "comms.failures[0].agent 2 is not an agent index"),
+])
+def test_a_problem_between_keys_is_blamed_on_the_set_of_agents_initial(overrides, key):
+    # it was blamed on the preset: `preset paper-fig3: control.at_least (2) exceeds the number of agents (1)`
+    message = _refused("paper-fig3", overrides)
+    assert message.startswith(f"--set {overrides[0]}: {key}"), message
+
+
+def test_an_option_the_swarm_engine_does_not_simulate_is_blamed_on_the_set_that_made_several_targets():
+    from trackjam.simulation.build import check_swarm_options
+
+    overrides = ["target=null", "targets=[{initial: [10,10,10,0,0,0]}, {initial: [20,20,20,0,0,0]}]"]
+    s = load_scenario("paper-fig3", overrides)
+    with pytest.raises(ConfigError) as err:
+        check_swarm_options(s, overrides)
+    assert str(err.value).startswith("--set targets=[{initial: [10,10,10,0,0,0]}")
+    assert "fusion.existence: 'evidence' is not simulated with several targets yet" in str(err.value)
+    with pytest.raises(ConfigError) as err:  # without the --set, the message is the key's alone
+        check_swarm_options(s)
+    assert str(err.value).startswith("fusion.existence: 'evidence'")
+
+
+def test_an_opening_angle_just_past_its_bound_is_shown_as_given():
+    # `got 170` for 170.0001 read as a legal value refused
+    assert _refused("paper-fig3", ["antenna.opening_angle_deg=170.0001"]).endswith(
+        "opening angle must be in [0.1, 170] deg, got 170.0001")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import functools
+import os
 import sys
 from pathlib import Path
 from typing import Callable, Optional
@@ -34,6 +35,41 @@ def _flags_take_no_value(cls: type) -> type:
 _Command = _flags_take_no_value(TyperCommand)
 
 
+class _ClosedPipeGuard:
+    """The standard output, through which a reader that stops reading early (`trackjam run | head
+    -1`) does not end the command: at the first broken pipe the stream is pointed at the null
+    device, and the command goes on to write its files. Without it the first progress line after
+    `head` left raised BrokenPipeError and the run was lost without a word."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+        self.broken = False
+
+    def _closed(self) -> None:
+        self.broken = True
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, self._stream.fileno())  # what the stream still buffers goes there too
+        finally:
+            os.close(null)
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._closed()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._closed()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 class _Cli(typer.Typer):
     """Typer whose usage errors (``--seed abc``, an unknown option) are one line and exit 2 too,
     instead of a framed multi-line box."""
@@ -41,6 +77,21 @@ class _Cli(typer.Typer):
     def __call__(self, *args, **kwargs):
         if "standalone_mode" in kwargs:
             return super().__call__(*args, **kwargs)
+        guard = None
+        if sys.stdout is not None and not isinstance(sys.stdout, _ClosedPipeGuard):
+            try:
+                sys.stdout.fileno()
+                guard = sys.stdout = _ClosedPipeGuard(sys.stdout)
+            except (AttributeError, OSError, ValueError):  # no file descriptor under it: left as it is
+                pass
+        try:
+            self._call(*args, **kwargs)
+        finally:
+            if guard is not None and guard.broken:
+                typer.echo("trackjam: note: the standard output was closed early (broken pipe); "
+                           "the command still ran to its end", err=True)
+
+    def _call(self, *args, **kwargs):
         # typer may vendor its own click: take the exceptions from where its BadParameter lives
         click_errors = sys.modules[typer.BadParameter.__module__]
         try:
@@ -116,6 +167,9 @@ def user_errors(fn: Callable) -> Callable:
         from trackjam.errors import TrackjamError
 
         try:
+            from trackjam.config.limits import check_environment
+
+            check_environment()  # before the command loads numba, which reads NUMBA_NUM_THREADS
             return fn(*args, **kwargs)
         except TrackjamError as err:
             _fail(str(err))
@@ -149,6 +203,19 @@ def interrupted(err: BaseException) -> bool:
         seen.add(id(err))
         err = err.__cause__ or err.__context__
     return False
+
+
+def _path_option(option: str, value: str | None, what: str = "folder") -> Path | None:
+    """The path an option names; an empty one is refused (``Path("")`` is the current folder, into
+    which `--out ''` wrote a run's files without a word). ``what`` the option names: a folder or a file."""
+    if value is None:
+        return None
+    if not value:
+        from trackjam.errors import ConfigError
+
+        default = f", or drop {option} for the default one" if what == "folder" else ""
+        raise ConfigError(f"{option} '': an empty path; name a {what}{default}")
+    return Path(value)
 
 
 def _load(scenario: str, overrides: list[str] | None, seed: int | None = None, warn: bool = True):
@@ -263,11 +330,12 @@ def _warm_up(s) -> None:
 def run(
     scenario: str = typer.Argument("paper-fig3", help=SCENARIO_HELP),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of every random choice (default: the scenario's)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/<name>-seed<seed>)."),
+    out: Optional[str] = typer.Option(None, "--out", metavar="<path>", help="Output folder (default: runs/<name>-seed<seed>)."),
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write run.png and replay.html."),
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
+    out = _path_option("--out", out)
     s = _load(scenario, set_, seed, warn=False)
     _runnable(s, set_)
     default = out is None
@@ -389,13 +457,14 @@ def experiment(
     seed: int = typer.Option(0, "--seed", help="Experiment seed; each trial's seed derives from it."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: CPU count)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, [SCHEME://]HOST:PORT with tcp (the default), tls, ws or wss."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
+    out: Optional[str] = typer.Option(None, "--out", metavar="<path>", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
     grid: Optional[str] = typer.Option(None, "--grid", help="swarm only: TARGETSxAGENTS, e.g. 1-4x3-6 (the default)."),
 ) -> None:
     """Run one of the paper's Monte Carlo experiments (resumable; local pool or Dask)."""
     from trackjam.experiments.cli import experiment_command
 
+    out = _path_option("--out", out)
     experiment_command(
         name=name,
         trials=trials,
@@ -413,13 +482,13 @@ def experiment(
 @user_errors
 def bench(
     quick: bool = typer.Option(False, "--quick", help="Fewer repetitions, for a smoke check."),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the figures as JSON here."),
+    json_out: Optional[str] = typer.Option(None, "--json", metavar="<path>", help="Also write the figures as JSON here."),
     only: Optional[list[str]] = typer.Option(None, "--only", help="filter | control | run | env (repeatable)."),
 ) -> None:
     """Measure the speed of the filter, the solvers, a whole run and the learning environment."""
     from trackjam.benchmarks.report import run_benchmarks
 
-    run_benchmarks(quick=quick, json_out=json_out, only=only or [])
+    run_benchmarks(quick=quick, json_out=_path_option("--json", json_out, "file"), only=only or [])
 
 
 def main() -> None:  # pragma: no cover

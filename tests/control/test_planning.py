@@ -147,7 +147,7 @@ def test_a_belief_at_least_is_checked_against_the_team_and_warns_without_the_bel
     from trackjam.config.warnings import scenario_warnings
     from trackjam.errors import ConfigError
 
-    with pytest.raises(ConfigError, match=r"control.belief_at_least \(4\) exceeds the number of agents \(3\)"):
+    with pytest.raises(ConfigError, match=r"control.belief_at_least \(4\) exceeds the number of agents in agents.initial \(3\)"):
         load_scenario("pursuit", ["control.belief_at_least=4"])
     with pytest.raises(ConfigError, match="control.belief_at_least"):
         load_scenario("pursuit", ["control.belief_at_least=0"])

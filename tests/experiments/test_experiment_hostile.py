@@ -319,7 +319,7 @@ def test_a_trial_file_that_would_not_fit_in_memory_is_run_again_unread(done, tmp
     monkeypatch.setattr(summary, "TRIAL_MAX_VALUES", 100_000)
     read = []
     real = pq.read_table
-    monkeypatch.setattr(summary.pq, "read_table", lambda p, *a, **k: (read.append(Path(p).name), real(p, *a, **k))[1])
+    monkeypatch.setattr(summary.pq, "read_table", lambda p, *a, **k: (read.append(Path(getattr(p, "name", p)).name), real(p, *a, **k))[1])
     with pytest.raises(summary.DamagedTrial, match=rf"^{path.name}: .*larger than"):
         summary.read_trial(path)
     assert read == []

@@ -27,6 +27,7 @@ MIN_EXTENT = 1.0  # m: the smallest side of the area
 DBW_MIN, DBW_MAX = -200.0, 60.0  # dBW: 1e-20 W to 1 MW
 MIN_ANGLE_DEG, MAX_ANGLE_DEG = 0.1, 170.0  # deg; past 170 the clutter range h_a / cos(theta_a / 2) explodes
 MAX_STEPS = 100_000
+MAX_THREADS = 1024  # control.grasp.threads' bound, and TRACKJAM_THREADS' and NUMBA_NUM_THREADS'
 MAX_AGENTS = 64
 MAX_STEP_WORK = 1e9  # elementary operations a step (about 5 to 30 s on one core)
 NAME_MAX = 100
@@ -275,3 +276,29 @@ def check_resources(s: Any) -> None:
                 f"{key}: one step would take about {ops:.2g} operations ({name.removeprefix('work_')}), "
                 f"past the cap of {MAX_STEP_WORK:.0g}; lower {key}"
             )
+
+
+def threads_variable(name: str, unset: str) -> int | None:
+    """The whole number of threads in [1, MAX_THREADS] that the environment variable ``name``
+    sets, None when it is unset or empty; anything else is refused in one line (``unset`` says
+    what leaving it unset means)."""
+    from trackjam.errors import shortened
+
+    env = os.environ.get(name)
+    if not env:
+        return None
+    text = env.strip()
+    if not (text.isdecimal() and len(text) <= 4 and 1 <= int(text) <= MAX_THREADS):
+        raise ConfigError(f"{name}={shortened(env, 40)!r}: must be a whole number of threads in "
+                          f"[1, {MAX_THREADS}] (or unset: {unset})")
+    return int(text)
+
+
+def check_environment() -> None:
+    """Refuse, in one line, a thread count in the environment that a command would trip over:
+    ``TRACKJAM_THREADS`` (read when a run builds its GRASP) and ``NUMBA_NUM_THREADS`` (read by
+    numba when it loads: 0 or -1 raised inside numba, text was a warning with a traceback).
+    Every command checks both before it loads anything, so that `validate` refuses what `run`
+    would."""
+    threads_variable("TRACKJAM_THREADS", "one per agent up to the CPU count")
+    threads_variable("NUMBA_NUM_THREADS", "numba's default, the CPU count")

@@ -17,7 +17,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from trackjam.config.model import LongInteger, Scenario
-from trackjam.errors import ConfigError, shortened
+from trackjam.errors import ConfigError, printable, shortened
 
 MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and stray binaries
 # values of a scenario once YAML's aliases are expanded: a 1 MB file holds fewer than this, but
@@ -35,7 +35,8 @@ class _Loader(yaml.SafeLoader):
     integer of more digits than Python converts (4300) is a :class:`LongInteger`, which the
     model refuses naming its key, instead of a ValueError from inside the parser, and YAML 1.1's
     numbers that read as another number are not: ``010`` is 10 (not octal 8), ``1:30`` the text
-    it is (not 90 in base 60)."""
+    it is (not 90 in base 60). Merge keys (``<<: *base``) merge as YAML 1.1 says, the keys given
+    beside them winning; a set (``!!set``) is refused like binary data."""
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> Any:
         text = str(node.value).replace("_", "")
@@ -56,6 +57,8 @@ class _Loader(yaml.SafeLoader):
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen = set()
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<: *base`: merged by SafeLoader, the keys given win
+                continue
             key = self.construct_object(key_node, deep=True)
             if isinstance(key, (list, dict)):  # YAML's "? [a, b]" keys; a Python dict cannot hold them
                 raise yaml.constructor.ConstructorError(
@@ -77,10 +80,19 @@ class _Loader(yaml.SafeLoader):
         )
 
 
+    def construct_yaml_set(self, node: yaml.MappingNode) -> Any:
+        # `radial_steps: !!set {1, 3}` was read as a list in the set's own order
+        raise yaml.constructor.ConstructorError(
+            None, None, f"a set (!!set) is not a scenario value; give a list (line {node.start_mark.line + 1})",
+            node.start_mark,
+        )
+
+
 _OCTAL = re.compile(r"[-+]?0[0-7]+")
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
 _Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
 _Loader.add_constructor("tag:yaml.org,2002:binary", _Loader.construct_yaml_binary)
+_Loader.add_constructor("tag:yaml.org,2002:set", _Loader.construct_yaml_set)
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
@@ -430,6 +442,9 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
         if "=" not in item:
             raise ConfigError(f"--set {shortened(item, SET_SHOWN)!r}: expected key=value")
         key, _, value = item.partition("=")
+        if not _utf8(item):  # bytes the shell passed that are not UTF-8: no key or value is spelt so
+            raise ConfigError(f"--set {printable(shortened(item, SET_SHOWN))}: not valid UTF-8 text (a key or a value "
+                              "holds bytes that are not UTF-8)")
         try:
             parsed = _parse_value(value)
         except TooLarge as err:
@@ -446,13 +461,27 @@ def overridden_keys(overrides: list[str] | None) -> dict[str, str]:
     return {item.partition("=")[0].strip(): f"--set {shortened(item, SET_SHOWN)}" for item in overrides or [] if "=" in item}
 
 
-def blamed_on_set(message: str, overrides: list[str] | None) -> str:
+def blamed_on_set(message: str, overrides: list[str] | None, cause: str | None = None) -> str:
     """A one-line problem ``"key: ..."`` found after validation (an option the engine does not
     simulate) prefixed with the ``--set`` item that set its key, as :func:`validate_scenario`
-    blames one; unchanged when no ``--set`` set it."""
+    blames one; when none set it, with the one that set ``cause`` (the key whose value makes
+    ``key``'s a problem: ``targets`` for an option the swarm engine does not simulate); unchanged
+    when no ``--set`` set either."""
     key, sep, _ = message.partition(": ")
-    where = _blamed(key, message, overridden_keys(overrides)) if sep and " " not in key else None
+    overridden = overridden_keys(overrides)
+    where = _blamed(key, message, overridden) if sep and " " not in key else None
+    if where is None and cause is not None:
+        where = _blamed(cause, message, overridden)
     return f"{where}: {message}" if where else message
+
+
+def _utf8(text: str) -> bool:
+    """``text`` is UTF-8 text: no byte the file system's decoding kept as a surrogate."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _deep_copy(d: Any) -> Any:

@@ -308,7 +308,7 @@ class Antenna(_Model):
     @classmethod
     def _angle(cls, v: float) -> float:
         if not MIN_ANGLE_DEG <= v <= MAX_ANGLE_DEG:
-            raise ValueError(f"opening angle must be in [{MIN_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}] deg, got {v:g}")
+            raise ValueError(f"opening angle must be in [{MIN_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}] deg, got {v!r}")
         return v
 
     @field_validator("power_levels_db")
@@ -727,9 +727,10 @@ class Scenario(_Model):
     def _consistent(self) -> "Scenario":
         n = len(self.agents.initial)
         if self.control.at_least > n:
-            raise ValueError(f"control.at_least ({self.control.at_least}) exceeds the number of agents ({n})")
+            raise ValueError(f"control.at_least ({self.control.at_least}) exceeds the number of agents in agents.initial ({n})")
         if self.control.belief_at_least is not None and self.control.belief_at_least > n:
-            raise ValueError(f"control.belief_at_least ({self.control.belief_at_least}) exceeds the number of agents ({n})")
+            raise ValueError(f"control.belief_at_least ({self.control.belief_at_least}) exceeds the number of agents in "
+                             f"agents.initial ({n})")
         c = self.control
         if c.close_in is not None and (c.solver == "greedy" or not c.constraints):
             why = "control.solver `greedy` plans" if c.solver == "greedy" else "control.constraints `false` plans"
@@ -741,7 +742,7 @@ class Scenario(_Model):
                 raise ValueError(f"agents.initial[{j}] {list(u)} lies outside the area")
         for k, f in enumerate(self.comms.failures):
             if f.agent >= n:
-                raise ValueError(f"comms.failures[{k}].agent {f.agent} is not an agent index (0..{n - 1})")
+                raise ValueError(f"comms.failures[{k}].agent {f.agent} is not an agent index (0..{n - 1} in agents.initial)")
         if self.target.initial is not None and self.targets is None:
             x = self.target.initial
             if any(not lo[k] <= x[k] <= hi[k] for k in range(3)):

@@ -94,7 +94,11 @@ def record_table(record: Mapping[str, Any]) -> pa.Table:
 def write_trial(folder: Path, record: Mapping[str, Any]) -> Path:
     """Write a trial atomically (:func:`trackjam.files.atomic_write`)."""
     final = folder / trial_filename(int(record["config"]), int(record["trial"]))
-    return atomic_write(final, lambda tmp: pq.write_table(record_table(record), tmp))
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:  # a file object: pyarrow's own path handling refuses a name that is not UTF-8
+            pq.write_table(record_table(record), fh)
+
+    return atomic_write(final, write)
 
 
 class DamagedTrial(ValueError):
@@ -120,11 +124,12 @@ def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
     row, the identity columns and the figures ``keys``, each NaN or within
     +-:data:`TRIAL_MAX_FIGURE`) or holds more than :data:`TRIAL_MAX_VALUES` values."""
     try:
-        meta = pq.read_metadata(path)
-        values = sum(meta.row_group(g).column(c).num_values
-                     for g in range(meta.num_row_groups) for c in range(meta.num_columns))
-        if values <= TRIAL_MAX_VALUES:
-            table = pq.read_table(path)
+        with open(path, "rb") as fh:  # a file object, as write_trial's
+            meta = pq.read_metadata(fh)
+            values = sum(meta.row_group(g).column(c).num_values
+                         for g in range(meta.num_row_groups) for c in range(meta.num_columns))
+            if values <= TRIAL_MAX_VALUES:
+                table = pq.read_table(fh)
     except (pa.ArrowException, OSError, ValueError) as err:
         raise DamagedTrial(f"{path.name}: {type(err).__name__}") from None
     if values > TRIAL_MAX_VALUES:

@@ -19,7 +19,8 @@ import numpy as np
 from trackjam.config import Scenario, load_scenario, scenario_to_yaml  # noqa: F401  (load_scenario: handed on)
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
-from trackjam.errors import ConfigError, shortened
+from trackjam.config.limits import threads_variable
+from trackjam.errors import ConfigError
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
 from trackjam.estimation.failsafe import FailSafe
 from trackjam.estimation.lmb import LMBParams
@@ -33,20 +34,11 @@ if TYPE_CHECKING:
     from trackjam.config.model import Oracle
 
 
-MAX_THREADS = 1024  # control.grasp.threads' bound
-
-
 def default_threads(n_agents: int) -> int:
     """One thread per agent's GRASP search, up to the CPU count, or as many as the environment's
     TRACKJAM_THREADS says (a whole number in [1, 1024]; anything else is refused in one line)."""
-    env = os.environ.get("TRACKJAM_THREADS")
-    if env:
-        text = env.strip()
-        if not (text.isdecimal() and len(text) <= 4 and 1 <= int(text) <= MAX_THREADS):
-            raise ConfigError(f"TRACKJAM_THREADS={shortened(env, 40)!r}: must be a whole number of threads in "
-                              f"[1, {MAX_THREADS}] (or unset: one per agent up to the CPU count)")
-        return int(text)
-    return max(1, min(n_agents, os.cpu_count() or 1))
+    env = threads_variable("TRACKJAM_THREADS", "one per agent up to the CPU count")
+    return env if env is not None else max(1, min(n_agents, os.cpu_count() or 1))
 
 
 def _home(r, low: np.ndarray) -> np.ndarray:
@@ -321,7 +313,7 @@ def check_swarm_options(s: Scenario, overrides: list[str] | None = None) -> None
             how = (f"the swarm engine's LMB filters use their own adaptive birth (leave it at {shown})"
                    if key in _OWN_BIRTH else f"the swarm engine runs with {shown}")
             raise ConfigError(blamed_on_set(f"{key}: {value!r} is not simulated with several targets yet; {how}",
-                                            overrides))
+                                            overrides, cause="targets"))
 
 
 def build_swarm(s: Scenario) -> SwarmComponents:

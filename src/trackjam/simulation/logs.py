@@ -105,4 +105,5 @@ def write_parquet(columns: dict[str, np.ndarray], path: Path) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    pq.write_table(pa.table({k: np.asarray(v) for k, v in columns.items()}), path)
+    with open(path, "wb") as fh:  # a file object: pyarrow's own path handling refuses a name that is not UTF-8
+        pq.write_table(pa.table({k: np.asarray(v) for k, v in columns.items()}), fh)
