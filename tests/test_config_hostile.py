@@ -596,3 +596,9 @@ def test_an_opening_angle_just_past_its_bound_is_shown_as_given():
     # `got 170` for 170.0001 read as a legal value refused
     assert _refused("paper-fig3", ["antenna.opening_angle_deg=170.0001"]).endswith(
         "opening angle must be in [0.1, 170] deg, got 170.0001")
+
+
+@pytest.mark.parametrize("item", ["=5", " =5", "area..low=[0,0,0]", ".steps=3"])
+def test_a_set_item_with_an_empty_key_is_shown_whole(item):
+    # `--set =5` said "--set '': empty key", not the item typed
+    assert _refused("paper-fig3", [item]) == f"--set {item!r}: an empty key (before the '=' or between two dots)"

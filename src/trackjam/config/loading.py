@@ -442,6 +442,8 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
         if "=" not in item:
             raise ConfigError(f"--set {shortened(item, SET_SHOWN)!r}: expected key=value")
         key, _, value = item.partition("=")
+        if not all(key.strip().split(".")):  # `--set =5` was "--set '': empty key", the item not shown
+            raise ConfigError(f"--set {shortened(item, SET_SHOWN)!r}: an empty key (before the '=' or between two dots)")
         if not _utf8(item):  # bytes the shell passed that are not UTF-8: no key or value is spelt so
             raise ConfigError(f"--set {printable(shortened(item, SET_SHOWN))}: not valid UTF-8 text (a key or a value "
                               "holds bytes that are not UTF-8)")
