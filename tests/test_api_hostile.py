@@ -8,6 +8,8 @@ inside with an IndexError after the truth had already moved)."""
 import numpy as np
 import pytest
 
+import trackjam
+
 from trackjam.config import load_scenario
 from trackjam.env import parallel_env
 from trackjam.env.policies import random_policy, rollout
@@ -176,3 +178,72 @@ def test_simulate_refuses_a_progress_that_is_not_callable_before_the_first_step(
     seen = []
     trackjam.simulate(scenario, progress=lambda t, n: seen.append((t, n)))
     assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_a_keyword_of_more_digits_than_python_prints_is_named():
+    # load_scenario(seed=10**5000) was Python's "Exceeds the limit (4300 digits)" while building the label
+    from trackjam.errors import ConfigError
+
+    for key in ("seed", "steps"):
+        with pytest.raises(ConfigError, match=rf"^load_scenario\({key}=<an integer of about 5001 digits>\): {key}: "):
+            trackjam.load_scenario("paper-fig3", **{key: 10**5000})
+
+
+def test_a_keyword_holding_an_array_keeps_the_message_on_one_line():
+    import numpy as np
+
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        trackjam.load_scenario("paper-fig3", agents__initial=np.full((3, 3), 5e5))
+    assert "\n" not in str(err.value) and str(err.value).startswith("load_scenario(agents__initial=array([[")
+
+
+@pytest.mark.parametrize("overrides", [{"steps=5", "steps=6"}, frozenset(["steps=5"]), {"steps=5": 1}])
+def test_overrides_without_an_order_are_refused(overrides):
+    # a set's order changes between processes: {'steps=5', 'steps=6'} gave 5 in some and 6 in others
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"^overrides: a list of 'key=value' texts, in order \(not a "):
+        trackjam.load_scenario("paper-fig3", overrides)
+
+
+@pytest.mark.parametrize("name", [None, 5, b"paper-fig3", 1.5])
+def test_a_scenario_that_is_neither_a_name_nor_a_path_is_named(name):
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"^scenario: a preset name or a path to a YAML/TOML file, got "):
+        trackjam.load_scenario(name)
+
+
+def test_a_preset_given_as_a_path_says_how_a_preset_is_named(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from trackjam.errors import ConfigError
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ConfigError, match=r"^paper-fig3: no such file; the preset of that name is named by a text"):
+        trackjam.load_scenario(Path("paper-fig3"))
+
+
+def test_with_seed_keeps_the_scenarios_seed_range():
+    from trackjam.simulation.build import with_seed
+
+    s = trackjam.load_scenario("paper-fig3")
+    assert with_seed(s, 2**63 - 1).seed == 2**63 - 1
+    for bad in (2**63, -1, 1.0, True):
+        with pytest.raises(ValueError, match=r"must be an integer in \[0, 2\^63 - 1\]"):
+            with_seed(s, bad)
+
+
+def test_write_run_checks_its_arguments_before_writing(tmp_path):
+    from trackjam.simulation.output import write_run
+
+    r = trackjam.simulate(trackjam.load_scenario("paper-fig3", ["steps=1", "filter.particles=100",
+                                                                "filter.birth_particles=20", "control.solver=exact"]))
+    for args, kw, words in [(("x", tmp_path / "a"), {}, "result must be"), ((r, None), {}, "out must be"),
+                            ((r, 5), {}, "out must be"), ((r, ""), {}, "out must be"),
+                            ((r, tmp_path / "b"), {"figures": "no"}, "figures must be True or False")]:
+        with pytest.raises(TypeError, match=f"^write_run: {words}"):
+            write_run(*args, **kw)
+    assert list(tmp_path.iterdir()) == []

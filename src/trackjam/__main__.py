@@ -1,3 +1,3 @@
-from trackjam.cli import app
+from trackjam.console import main
 
-app(prog_name="trackjam")
+main()

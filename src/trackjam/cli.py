@@ -9,7 +9,9 @@ from __future__ import annotations
 import errno
 import functools
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -38,8 +40,9 @@ _Command = _flags_take_no_value(TyperCommand)
 class _ClosedPipeGuard:
     """The standard output, through which a reader that stops reading early (`trackjam run | head
     -1`) does not end the command: at the first broken pipe the stream is pointed at the null
-    device, and the command goes on to write its files. Without it the first progress line after
-    `head` left raised BrokenPipeError and the run was lost without a word."""
+    device, and the command goes on to write its files, silently as `ls | head` is. Without it
+    the first progress line after `head` left raised BrokenPipeError and the run was lost without
+    a word."""
 
     def __init__(self, stream) -> None:
         self._stream = stream
@@ -70,6 +73,13 @@ class _ClosedPipeGuard:
         return getattr(self._stream, name)
 
 
+TERMINATED = 128 + signal.SIGTERM  # the exit status of a command ended by SIGTERM, as the shell reports one
+
+
+def _terminated(signum, frame) -> None:
+    raise SystemExit(TERMINATED)
+
+
 class _Cli(typer.Typer):
     """Typer whose usage errors (``--seed abc``, an unknown option) are one line and exit 2 too,
     instead of a framed multi-line box."""
@@ -77,19 +87,30 @@ class _Cli(typer.Typer):
     def __call__(self, *args, **kwargs):
         if "standalone_mode" in kwargs:
             return super().__call__(*args, **kwargs)
-        guard = None
+        global _said_interrupted
+        _said_interrupted = False
         if sys.stdout is not None and not isinstance(sys.stdout, _ClosedPipeGuard):
             try:
                 sys.stdout.fileno()
-                guard = sys.stdout = _ClosedPipeGuard(sys.stdout)
+                sys.stdout = _ClosedPipeGuard(sys.stdout)
             except (AttributeError, OSError, ValueError):  # no file descriptor under it: left as it is
                 pass
+        previous = None
+        if threading.current_thread() is threading.main_thread():
+            # SIGTERM (`kill`, a batch system's time limit) ended a run at once, status -15, with no
+            # word and a temporary file half-written; as SystemExit the files being written are
+            # removed on the way out (trackjam.files.atomic_write), and an experiment's pool is
+            # terminated, as its own handler does
+            previous = signal.signal(signal.SIGTERM, _terminated)
         try:
             self._call(*args, **kwargs)
+        except SystemExit as err:
+            if err.code == TERMINATED:
+                typer.echo("trackjam: terminated", err=True)
+            raise
         finally:
-            if guard is not None and guard.broken:
-                typer.echo("trackjam: note: the standard output was closed early (broken pipe); "
-                           "the command still ran to its end", err=True)
+            if previous is not None:  # called from Python (a test), the caller's handler again
+                signal.signal(signal.SIGTERM, previous)
 
     def _call(self, *args, **kwargs):
         # typer may vendor its own click: take the exceptions from where its BadParameter lives
@@ -114,6 +135,8 @@ class _Cli(typer.Typer):
                 typer.echo(f"trackjam: error: {_full_disk(err)}", err=True)
                 sys.exit(2)
             raise
+        if rv == 130 and not _said_interrupted:  # typer's own Exit(130) for a Ctrl-C before the command ran
+            typer.echo("trackjam: interrupted", err=True)
         sys.exit(rv if isinstance(rv, int) else 0)
 
     def command(self, *args, **kwargs):
@@ -159,6 +182,9 @@ def _fail(message: str) -> None:
     raise typer.Exit(2)
 
 
+_said_interrupted = False  # a command's Ctrl-C was reported (user_errors): typer's exit status 130 alone was not
+
+
 def user_errors(fn: Callable) -> Callable:
     """Turn the errors a user can fix into one line and exit status 2."""
 
@@ -185,6 +211,8 @@ def user_errors(fn: Callable) -> Callable:
         except (KeyboardInterrupt, SystemError) as err:
             if not interrupted(err):  # a SystemError that no Ctrl-C caused
                 raise
+            global _said_interrupted
+            _said_interrupted = True
             typer.echo("trackjam: interrupted", err=True)
             raise typer.Exit(130)
 
@@ -362,7 +390,16 @@ def run(
         result = simulate(s, progress=cb)
     finally:
         close()
-    files = write_run(result, out, figures=figures)
+    try:
+        files = write_run(result, out, figures=figures)
+    except KeyboardInterrupt:  # it said "interrupted" alone, of a folder left without its summary.json
+        from trackjam.errors import printable
+
+        global _said_interrupted
+        _said_interrupted = True
+        typer.echo(f"trackjam: interrupted while writing {printable(str(out))}; its summary.json is written last, "
+                   "so the folder is incomplete until the same command runs again", err=True)
+        raise typer.Exit(130) from None
     m = result.summary
     if "n_targets" in m:
         Console(width=100).print(_swarm_table(s, m))

@@ -85,3 +85,37 @@ def test_rollout_takes_numpy_integers(scenario):
     env = parallel_env(scenario)
     rows = rollout(env, random_policy(env, 0), np.arange(2, 4))
     assert [r["seed"] for r in rows] == [2, 3]
+
+
+def test_reset_without_a_seed_after_the_last_seed_wraps_to_zero(scenario):
+    # it ran seed 2^63, past the scenario's bound, and the run it wrote could not be run again
+    env = parallel_env(scenario)
+    env.reset(seed=2**63 - 1)
+    _, infos = env.reset()
+    assert next(iter(infos.values()))["seed"] == 0 and env.sim.scenario.seed == 0
+
+
+def test_rollout_checks_every_argument_before_the_first_episode(scenario, monkeypatch):
+    from trackjam.env import random_policy, rollout
+
+    env = parallel_env(scenario)
+    episodes = []
+    real = env.reset
+    monkeypatch.setattr(env, "reset", lambda **kw: (episodes.append(kw), real(**kw))[1])
+    policy = random_policy(env, 0)
+    with pytest.raises(ValueError, match=r"^rollout: seed -1 must be an integer"):
+        rollout(env, policy, [1, 2, -1])
+    with pytest.raises(ValueError, match=r"^rollout: seed 9223372036854775808 must be an integer"):
+        rollout(env, policy, [1, 2**63])
+    with pytest.raises(TypeError, match=r"^rollout: policy must be callable"):
+        rollout(env, 5, [1])
+    with pytest.raises(TypeError, match=r"^rollout: progress must be callable"):
+        rollout(env, policy, [1], progress=5)
+    assert episodes == []  # no episode ran
+
+
+def test_a_planned_action_names_a_solver_by_text():
+    from trackjam.env.parallel import Planned
+
+    with pytest.raises(TypeError, match=r"^Planned: solver must be a solver's name \(greedy, grasp, exact\), got list"):
+        Planned(["exact"])

@@ -5,6 +5,7 @@ line naming the key and the problem."""
 from __future__ import annotations
 
 import difflib
+import os
 import re
 import stat
 import tomllib
@@ -425,7 +426,13 @@ def set_dotted(data: dict, key: str, value: Any) -> None:
 
 
 def _items(overrides: Any) -> list[str]:
-    """The ``--set`` texts as a list (a lone text would be read a character at a time)."""
+    """The ``--set`` texts as a list (a lone text would be read a character at a time), from any
+    iterable in order: not a set or a mapping."""
+    if isinstance(overrides, (set, frozenset, typing.Mapping)):
+        # a set's order changes from one process to the next (so did which of two items setting
+        # one key won), and a mapping would be read by its keys alone
+        raise ConfigError(f"overrides: a list of 'key=value' texts, in order (not a {type(overrides).__name__}), "
+                          f"got {overrides!r:.80}")
     try:
         items = None if isinstance(overrides, (str, bytes)) else list(overrides or [])
     except TypeError:  # not iterable
@@ -494,9 +501,23 @@ def _deep_copy(d: Any) -> Any:
     return d
 
 
+def _shown_value(value: Any) -> str:
+    """A keyword's value for a message: its repr, but an integer of more digits than Python
+    prints (4300) by its length, and everything on one line (a numpy array's repr has several)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 14_000:
+        return f"<an integer of about {int(value.bit_length() * 0.30103) + 1} digits>"
+    return " ".join(repr(value).split())
+
+
 def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
     """Raw mapping of a preset name or a file, and a label for messages."""
+    if not isinstance(name_or_path, (str, os.PathLike)):  # None, 5 or bytes were looked up as file names
+        raise ConfigError(f"scenario: a preset name or a path to a YAML/TOML file, got {type(name_or_path).__name__} "
+                          f"{shortened(_shown_value(name_or_path), 60)}")
     text = str(name_or_path)
+    if not isinstance(name_or_path, str) and text in preset_names() and not Path(text).exists():
+        raise ConfigError(f"{text}: no such file; the preset of that name is named by a text, "
+                          f"load_scenario({text!r}), not a path")
     if not text:  # Path("") is the current folder: "is a folder" named nothing the user typed
         raise ConfigError(f"{text!r}: an empty scenario name; give a preset (`trackjam presets`) or a YAML/TOML file")
     if isinstance(name_or_path, str) and text in preset_names():
@@ -523,7 +544,7 @@ def load_scenario(
     for key, value in fields.items():
         dotted = key.replace("__", ".")
         set_dotted(data, dotted, value)
-        blame[dotted] = f"load_scenario({shortened(f'{key}={value!r}', SET_SHOWN)})"
+        blame[dotted] = f"load_scenario({printable(shortened(f'{key}={_shown_value(value)}', SET_SHOWN))})"
     return validate_scenario(data, label, blame)
 
 

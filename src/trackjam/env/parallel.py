@@ -64,6 +64,11 @@ class Planned:
 
     solver: str
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.solver, str):  # Planned(["exact"]) was "unhashable type: 'list'" at the step
+            raise TypeError(f"Planned: solver must be a solver's name ({', '.join(SOLVERS)}), "
+                            f"got {type(self.solver).__name__} {self.solver!r:.60}")
+
 
 class TrackjamParallelEnv(ParallelEnv):
     metadata = {"name": "trackjam_v0", "render_modes": list(RENDER_MODES), "render_fps": 1}
@@ -116,11 +121,12 @@ class TrackjamParallelEnv(ParallelEnv):
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """Start an episode on ``seed`` (same seed, same episode: it is the run of
         :func:`trackjam.simulate` with that seed). Without one, the first episode takes the
-        scenario's seed and each later one the previous seed + 1. ``options`` is accepted for
-        the API and not read: the scenario says everything."""
+        scenario's seed and each later one the previous seed + 1, after 2^63 - 1 the seed 0 (a
+        seed past it would write a scenario.yaml that no command takes). ``options`` is accepted
+        for the API and not read: the scenario says everything."""
         if seed is None:
             # before the first reset, self.sim runs on the scenario's own seed
-            seed = self.sim.c.seed if self._seed is None else self._seed + 1
+            seed = self.sim.c.seed if self._seed is None else (self._seed + 1) % (MAX_SEED + 1)
         elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
             raise ValueError(f"reset(seed={seed!r}): the seed must be an integer in [0, 2^63 - 1]")
         self._seed = int(seed)

@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
+from trackjam.config.limits import MAX_SEED
 from trackjam.control.solve import SOLVERS
 from trackjam.env.parallel import Planned, TrackjamParallelEnv
 
@@ -53,8 +54,8 @@ class RandomPolicy:
 
 def _seed(seed, where: str) -> int:
     """An episode seed: a whole number >= 0 (a bool, a fraction or a text is a mistake)."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"{where}: seed {seed!r} must be an integer >= 0")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"{where}: seed {seed!r} must be an integer >= 0 and <= 2^63 - 1")
     return int(seed)
 
 
@@ -70,9 +71,15 @@ def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
     A policy with a ``reset(seed)`` method is reset at the start of each episode."""
     if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Iterable):
         raise ValueError(f"rollout: seeds must be an iterable of integers >= 0 (one episode each), got {seeds!r}")
+    # every argument checked before the first episode: a bad last seed, a policy or a progress that
+    # cannot be called were found after the episodes before them had run, and their rows were lost
+    seeds = [_seed(seed, "rollout") for seed in seeds]  # int() made 1.5 and 1.7 the same episode
+    if not callable(policy):
+        raise TypeError(f"rollout: policy must be callable (observations -> actions), got {type(policy).__name__}")
+    if progress is not None and not callable(progress):
+        raise TypeError(f"rollout: progress must be callable (one row each) or None, got {type(progress).__name__}")
     rows = []
     for seed in seeds:
-        seed = _seed(seed, "rollout")  # int() made 1.5 and 1.7 the same episode
         obs, _ = env.reset(seed=seed)
         if hasattr(policy, "reset"):
             policy.reset(int(seed))

@@ -19,7 +19,7 @@ import numpy as np
 from trackjam.config import Scenario, load_scenario, scenario_to_yaml  # noqa: F401  (load_scenario: handed on)
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
-from trackjam.config.limits import threads_variable
+from trackjam.config.limits import MAX_SEED, threads_variable
 from trackjam.errors import ConfigError
 from trackjam.estimation.bernoulli import BernoulliFilter, FilterParams
 from trackjam.estimation.failsafe import FailSafe
@@ -342,8 +342,11 @@ def scenario_text(s: Scenario) -> str:
 
 
 def with_seed(s: Scenario, seed: int) -> Scenario:
-    """The same scenario on another root seed."""
-    return s.model_copy(update={"seed": seed})
+    """The same scenario on another root seed, in [0, 2^63 - 1] as the scenario's own (a copy
+    is not validated again)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"seed {seed!r}: must be an integer in [0, 2^63 - 1]")
+    return s.model_copy(update={"seed": int(seed)})
 
 
 WARM_STEPS = 2

@@ -11,6 +11,7 @@ already there keep their earlier content.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
@@ -72,6 +73,14 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
     """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``; return the files."""
     from trackjam.simulation.logs import write_parquet
 
+    # checked before anything is written: a text result was an AttributeError, None or 5 pathlib's
+    # TypeError, "" the current folder, and figures="no" drew the figures
+    if not hasattr(result, "scenario") or not (hasattr(result, "steps") or hasattr(result, "tables")):
+        raise TypeError(f"write_run: result must be what trackjam.simulate returns, got {type(result).__name__}")
+    if not isinstance(out, (str, os.PathLike)) or not str(out):
+        raise TypeError(f"write_run: out must be a folder's path, got {type(out).__name__} {out!r:.60}")
+    if not isinstance(figures, bool):
+        raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)
     check_out_dir(out, result.scenario)
     try:
