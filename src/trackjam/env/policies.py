@@ -12,9 +12,8 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
-from trackjam.config.limits import MAX_SEED
 from trackjam.control.solve import SOLVERS
-from trackjam.env.parallel import Planned, TrackjamParallelEnv
+from trackjam.env.parallel import MAX_SEED, Planned, TrackjamParallelEnv
 
 Policy = Callable[[dict], dict]
 # the random policy's stream: the episode seed with this second word, so it is independent of the
