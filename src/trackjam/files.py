@@ -37,7 +37,7 @@ def check_writable(folder: Path, where: str) -> None:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as err:
-        raise ConfigError(f"{where}: {folder} is not writable ({err.strerror})") from None
+        raise ConfigError(f"{where}: no file can be made in {folder} ({err.strerror})") from None
 
 
 def taken_by(path: Path) -> str | None:
