@@ -247,3 +247,29 @@ def test_write_run_checks_its_arguments_before_writing(tmp_path):
         with pytest.raises(TypeError, match=f"^write_run: {words}"):
             write_run(*args, **kw)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_overrides_in_a_numpy_array_are_read_in_order():
+    # `overrides or []` asked the array for its truth value: "ambiguous" ValueError
+    import numpy as np
+
+    assert trackjam.load_scenario("paper-fig3", np.array(["steps=5", "steps=6"])).steps == 6
+    assert trackjam.load_scenario("paper-fig3", np.array([], dtype=str)).steps == 30
+
+
+def test_a_keyword_holding_an_integer_past_4300_digits_inside_a_list_is_named():
+    from trackjam.errors import ConfigError
+
+    # it was Python's "Exceeds the limit (4300 digits)" while the message's label was made
+    with pytest.raises(ConfigError, match=r"^load_scenario\(agents__initial=<a list holding an integer .*\): "
+                                          r"agents\.initial\.0\.0: must be a finite number, got an integer of 5001 digits$"):
+        trackjam.load_scenario("paper-fig3", agents__initial=[[10**5000, 0, 0]])
+
+
+def test_rollout_reads_a_generator_of_seeds_as_it_goes():
+    import itertools
+
+    env = parallel_env(load_scenario("paper-fig3", ["steps=2", "filter.particles=100", "filter.birth_particles=20",
+                                                    "control.solver=greedy"]))
+    rows = rollout(env, random_policy(env, 0), itertools.islice(itertools.count(5), 2))
+    assert [r["seed"] for r in rows] == [5, 6]

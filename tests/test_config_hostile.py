@@ -567,15 +567,34 @@ def test_a_set_item_that_is_not_utf8_is_refused_naming_the_set():
     assert message == "--set st\\udcffeps=1: not valid UTF-8 text (a key or a value holds bytes that are not UTF-8)"
 
 
-@pytest.mark.parametrize("overrides, key", [
-    (["agents.initial=[[10,10,10]]"], "control.at_least (2) exceeds the number of agents in agents.initial (1)"),
+@pytest.mark.parametrize("overrides, blamed, key", [
+    (["agents.initial=[[10,10,10]]"], 0, "control.at_least (2) exceeds the number of agents in agents.initial (1)"),
+    # both keys set: the one the message starts with, not the --set given first
     (["agents.initial=[[10,10,10],[11,11,11]]", "control.belief_at_least=2", "control.at_least=1",
-      "comms.failures=[{agent: 2, step: 1, mode: breakdown}]"], "comms.failures[0].agent 2 is not an agent index"),
+      "comms.failures=[{agent: 2, step: 1, mode: breakdown}]"], 3, "comms.failures[0].agent 2 is not an agent index"),
+    (["comms.failures=[{agent: 2, step: 1, mode: breakdown}]", "agents.initial=[[10,10,10],[11,11,11]]"], 0,
+     "comms.failures[0].agent 2 is not an agent index"),
 ])
-def test_a_problem_between_keys_is_blamed_on_the_set_of_agents_initial(overrides, key):
+def test_a_problem_between_keys_is_blamed_on_the_set_that_caused_it(overrides, blamed, key):
     # it was blamed on the preset: `preset paper-fig3: control.at_least (2) exceeds the number of agents (1)`
     message = _refused("paper-fig3", overrides)
-    assert message.startswith(f"--set {overrides[0]}: {key}"), message
+    assert message.startswith(f"--set {overrides[blamed]}: {key}"), message
+
+
+def test_a_chain_of_merge_keys_is_refused_before_it_copies_without_end(tmp_path):
+    # each a_i merges a_(i-1): the keys copied grow as the square of the chain, and 8,000 lines
+    # took 68 s and 1.25 GB before the size check of the data could count them
+    f = tmp_path / "chain.yaml"
+    f.write_text("a0: &a0 {k0: 0}\n" + "".join(f"a{i}: &a{i} {{<<: *a{i - 1}, k{i}: {i}}}\n" for i in range(1, 8000)))
+    with pytest.raises(ConfigError, match=r"its merge keys \(<<\) copy more than 1,000,000 keys; a scenario has a few hundred"):
+        load_scenario(str(f))
+
+
+def test_a_merge_source_with_a_key_given_twice_is_refused(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text("area: {<<: {low: [0, 0, 0], low: [1, 1, 1]}, high: [50, 50, 50]}\n")
+    with pytest.raises(ConfigError, match=r"duplicate key 'low'"):
+        load_scenario(str(f))
 
 
 def test_an_option_the_swarm_engine_does_not_simulate_is_blamed_on_the_set_that_made_several_targets():

@@ -8,15 +8,14 @@ from __future__ import annotations
 
 import errno
 import functools
-import os
-import signal
 import sys
-import threading
 from pathlib import Path
 from typing import Callable, Optional
 
 import typer
 from typer.core import TyperCommand, TyperGroup
+
+from trackjam.console import TERMINATED  # the exit status of a command ended by SIGTERM
 
 
 def _flags_take_no_value(cls: type) -> type:
@@ -37,47 +36,6 @@ def _flags_take_no_value(cls: type) -> type:
 _Command = _flags_take_no_value(TyperCommand)
 
 
-class _ClosedPipeGuard:
-    """The standard output, through which a reader that stops reading early (`trackjam run | head
-    -1`) does not end the command: at the first broken pipe the stream is pointed at the null
-    device, and the command goes on to write its files, silently as `ls | head` is. Without it
-    the first progress line after `head` left raised BrokenPipeError and the run was lost without
-    a word."""
-
-    def __init__(self, stream) -> None:
-        self._stream = stream
-        self.broken = False
-
-    def _closed(self) -> None:
-        self.broken = True
-        null = os.open(os.devnull, os.O_WRONLY)
-        try:
-            os.dup2(null, self._stream.fileno())  # what the stream still buffers goes there too
-        finally:
-            os.close(null)
-
-    def write(self, text: str) -> int:
-        try:
-            return self._stream.write(text)
-        except BrokenPipeError:
-            self._closed()
-            return len(text)
-
-    def flush(self) -> None:
-        try:
-            self._stream.flush()
-        except BrokenPipeError:
-            self._closed()
-
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
-
-
-TERMINATED = 128 + signal.SIGTERM  # the exit status of a command ended by SIGTERM, as the shell reports one
-
-
-def _terminated(signum, frame) -> None:
-    raise SystemExit(TERMINATED)
 
 
 class _Cli(typer.Typer):
@@ -87,32 +45,8 @@ class _Cli(typer.Typer):
     def __call__(self, *args, **kwargs):
         if "standalone_mode" in kwargs:
             return super().__call__(*args, **kwargs)
-        global _said_interrupted
-        _said_interrupted = False
-        if sys.stdout is not None and not isinstance(sys.stdout, _ClosedPipeGuard):
-            try:
-                sys.stdout.fileno()
-                sys.stdout = _ClosedPipeGuard(sys.stdout)
-            except (AttributeError, OSError, ValueError):  # no file descriptor under it: left as it is
-                pass
-        previous = None
-        if threading.current_thread() is threading.main_thread():
-            # SIGTERM (`kill`, a batch system's time limit) ended a run at once, status -15, with no
-            # word and a temporary file half-written; as SystemExit the files being written are
-            # removed on the way out (trackjam.files.atomic_write), and an experiment's pool is
-            # terminated, as its own handler does
-            previous = signal.signal(signal.SIGTERM, _terminated)
-        try:
-            self._call(*args, **kwargs)
-        except SystemExit as err:
-            if err.code == TERMINATED:
-                typer.echo("trackjam: terminated", err=True)
-            raise
-        finally:
-            if previous is not None:  # called from Python (a test), the caller's handler again
-                signal.signal(signal.SIGTERM, previous)
-
-    def _call(self, *args, **kwargs):
+        global _said_interrupted, _said_terminated
+        _said_interrupted = _said_terminated = False
         # typer may vendor its own click: take the exceptions from where its BadParameter lives
         click_errors = sys.modules[typer.BadParameter.__module__]
         try:
@@ -183,6 +117,7 @@ def _fail(message: str) -> None:
 
 
 _said_interrupted = False  # a command's Ctrl-C was reported (user_errors): typer's exit status 130 alone was not
+_said_terminated = False  # a SIGTERM was reported by the command (`run` while writing): the entry point need not
 
 
 def user_errors(fn: Callable) -> Callable:
@@ -209,6 +144,9 @@ def user_errors(fn: Callable) -> Callable:
                 _fail(_full_disk(err))
             raise
         except (KeyboardInterrupt, SystemError) as err:
+            ended = _cause(err, SystemExit)  # a SIGTERM whose handler ran inside a callback of compiled code
+            if isinstance(err, SystemError) and ended is not None:
+                raise SystemExit(ended.code) from None
             if not interrupted(err):  # a SystemError that no Ctrl-C caused
                 raise
             global _said_interrupted
@@ -217,6 +155,17 @@ def user_errors(fn: Callable) -> Callable:
             raise typer.Exit(130)
 
     return wrapper
+
+
+def _cause(err: BaseException, kind: type) -> BaseException | None:
+    """The first exception of type ``kind`` in ``err``'s chain of causes and contexts, or None."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, kind):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
 
 
 def interrupted(err: BaseException) -> bool:
@@ -392,13 +341,22 @@ def run(
         close()
     try:
         files = write_run(result, out, figures=figures)
-    except KeyboardInterrupt:  # it said "interrupted" alone, of a folder left without its summary.json
+    except (KeyboardInterrupt, SystemExit) as err:  # it said "interrupted" alone, of a folder left incomplete
+        if isinstance(err, SystemExit) and err.code != TERMINATED:
+            raise
         from trackjam.errors import printable
 
-        global _said_interrupted
+        global _said_interrupted, _said_terminated
+        how = "interrupted" if isinstance(err, KeyboardInterrupt) else "terminated"
+        if out.is_dir() and not (out / "summary.json").exists():
+            typer.echo(f"trackjam: {how} while writing {printable(str(out))}; its summary.json is written last, "
+                       "so the folder is incomplete until the same command runs again", err=True)
+        else:  # stopped before the folder was touched
+            typer.echo(f"trackjam: {how}", err=True)
+        if isinstance(err, SystemExit):
+            _said_terminated = True
+            raise
         _said_interrupted = True
-        typer.echo(f"trackjam: interrupted while writing {printable(str(out))}; its summary.json is written last, "
-                   "so the folder is incomplete until the same command runs again", err=True)
         raise typer.Exit(130) from None
     m = result.summary
     if "n_targets" in m:
@@ -527,10 +485,3 @@ def bench(
 
     run_benchmarks(quick=quick, json_out=_path_option("--json", json_out, "file"), only=only or [])
 
-
-def main() -> None:  # pragma: no cover
-    app()
-
-
-if __name__ == "__main__":  # pragma: no cover
-    main()

@@ -1,14 +1,92 @@
-"""The `trackjam` command's entry point: the command line (:mod:`trackjam.cli`) imported under a
-Ctrl-C handler, so that a Ctrl-C while typer and rich load (the first tenth of a second) ends in
-the one line and exit status 130 a Ctrl-C gets later, not a KeyboardInterrupt traceback."""
+"""The `trackjam` program's entry point (the console script and ``python -m trackjam``): what
+belongs to the process rather than to the command line object :data:`trackjam.cli.app`, which
+Python code may call too.
 
+- The command line is imported under a Ctrl-C handler, so that a Ctrl-C while typer and rich load
+  (the first tenth of a second) ends in the one line and exit status 130 a Ctrl-C gets later, not
+  a KeyboardInterrupt traceback.
+- SIGTERM (`kill`, a batch system's time limit) raises SystemExit(143): the file being written is
+  removed on the way out (:func:`trackjam.files.atomic_write`), an experiment's pool is
+  terminated, and the command ends with one line, `trackjam: terminated`. It ended a run at once,
+  status -15, with no word and sometimes a temporary file.
+- A reader that stops early (`trackjam run | head -1`, `2>&1 | head`) does not end the command:
+  the standard output and error write through :class:`_PipeSafe`, which points its file
+  descriptor at the null device at the first broken pipe, and the command goes on to write its
+  files, silently. Without it the first progress line after `head` left raised BrokenPipeError,
+  exit status 1, and the run was lost without a word.
+"""
+
+import io
+import os
+import signal
 import sys
+
+TERMINATED = 128 + signal.SIGTERM
+
+
+class _PipeSafe(io.RawIOBase):
+    """A file descriptor's raw writer that takes a broken pipe as the reader's leave: from then
+    on the descriptor writes to the null device. Under a text and a buffered layer, so that every
+    way to the descriptor (``sys.stdout.buffer``, which click uses when the encoding is ASCII,
+    ``writelines``, rich) goes through it."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self._fd = fd
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self._fd)
+
+    def write(self, data) -> int:
+        try:
+            return os.write(self._fd, data)
+        except BrokenPipeError:
+            null = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(null, self._fd)
+            finally:
+                os.close(null)
+            return len(data)
+
+    def close(self) -> None:  # the descriptor is the process's: never closed here
+        self.flush()
+
+
+def _pipe_safe(stream):
+    """``stream`` (sys.stdout or sys.stderr) rebuilt over :class:`_PipeSafe`, with its encoding,
+    error handler and line buffering; unchanged when it has no file descriptor."""
+    try:
+        fd = stream.fileno()
+        stream.flush()
+    except (AttributeError, OSError, ValueError):
+        return stream
+    buffered = io.BufferedWriter(_PipeSafe(fd))
+    return io.TextIOWrapper(buffered, encoding=stream.encoding, errors=stream.errors,
+                            line_buffering=stream.line_buffering or os.isatty(fd), write_through=False)
+
+
+def _terminated(signum, frame) -> None:
+    raise SystemExit(TERMINATED)
 
 
 def main() -> None:
+    sys.stdout = _pipe_safe(sys.stdout)
+    sys.stderr = _pipe_safe(sys.stderr)
+    signal.signal(signal.SIGTERM, _terminated)
     try:
-        from trackjam.cli import app
+        import trackjam.cli as cli
     except KeyboardInterrupt:
         sys.stderr.write("trackjam: interrupted\n")
         sys.exit(130)
-    app(prog_name="trackjam")
+    try:
+        cli.app(prog_name="trackjam")
+    except SystemExit as err:
+        if err.code == TERMINATED and not cli._said_terminated:
+            sys.stderr.write("trackjam: terminated\n")
+        raise

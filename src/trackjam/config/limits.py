@@ -27,7 +27,8 @@ MIN_EXTENT = 1.0  # m: the smallest side of the area
 DBW_MIN, DBW_MAX = -200.0, 60.0  # dBW: 1e-20 W to 1 MW
 MIN_ANGLE_DEG, MAX_ANGLE_DEG = 0.1, 170.0  # deg; past 170 the clutter range h_a / cos(theta_a / 2) explodes
 MAX_STEPS = 100_000
-MAX_THREADS = 1024  # control.grasp.threads' bound, and TRACKJAM_THREADS' and NUMBA_NUM_THREADS'
+MAX_THREADS = 1024  # control.grasp.threads' bound, and TRACKJAM_THREADS'
+NUMBA_MAX_THREADS = 2**31 - 1  # NUMBA_NUM_THREADS: numba sets no bound of its own; a C int's
 MAX_AGENTS = 64
 MAX_STEP_WORK = 1e9  # elementary operations a step (about 5 to 30 s on one core)
 NAME_MAX = 100
@@ -300,5 +301,15 @@ def check_environment() -> None:
     numba when it loads: 0 or -1 raised inside numba, text was a warning with a traceback).
     Every command checks both before it loads anything, so that `validate` refuses what `run`
     would."""
+    from trackjam.errors import shortened
+
     threads_variable("TRACKJAM_THREADS", "one per agent up to the CPU count")
-    threads_variable("NUMBA_NUM_THREADS", "numba's default, the CPU count")
+    env = os.environ.get("NUMBA_NUM_THREADS")
+    if env is not None:  # numba's own variable, read as numba reads it: int(), set even when empty
+        try:
+            n = int(env)
+        except ValueError:
+            n = 0
+        if not 1 <= n <= NUMBA_MAX_THREADS:
+            raise ConfigError(f"NUMBA_NUM_THREADS={shortened(env, 40)!r}: must be a whole number of threads >= 1 "
+                              "(or unset: numba's default, the CPU count)")

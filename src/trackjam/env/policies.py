@@ -8,7 +8,7 @@ compared run by run.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sized
 
 import numpy as np
 
@@ -72,13 +72,16 @@ def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
         raise ValueError(f"rollout: seeds must be an iterable of integers >= 0 (one episode each), got {seeds!r}")
     # every argument checked before the first episode: a bad last seed, a policy or a progress that
     # cannot be called were found after the episodes before them had run, and their rows were lost
-    seeds = [_seed(seed, "rollout") for seed in seeds]  # int() made 1.5 and 1.7 the same episode
+    # (seeds of known length are all checked first; a generator, which may not end, as it goes)
+    if isinstance(seeds, Sized):
+        seeds = [_seed(seed, "rollout") for seed in seeds]  # int() made 1.5 and 1.7 the same episode
     if not callable(policy):
         raise TypeError(f"rollout: policy must be callable (observations -> actions), got {type(policy).__name__}")
     if progress is not None and not callable(progress):
         raise TypeError(f"rollout: progress must be callable (one row each) or None, got {type(progress).__name__}")
     rows = []
     for seed in seeds:
+        seed = _seed(seed, "rollout")
         obs, _ = env.reset(seed=seed)
         if hasattr(policy, "reset"):
             policy.reset(int(seed))

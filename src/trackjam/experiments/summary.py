@@ -94,6 +94,7 @@ def record_table(record: Mapping[str, Any]) -> pa.Table:
 def write_trial(folder: Path, record: Mapping[str, Any]) -> Path:
     """Write a trial atomically (:func:`trackjam.files.atomic_write`)."""
     final = folder / trial_filename(int(record["config"]), int(record["trial"]))
+
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:  # a file object: pyarrow's own path handling refuses a name that is not UTF-8
             pq.write_table(record_table(record), fh)
