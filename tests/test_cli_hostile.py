@@ -549,8 +549,7 @@ def test_a_run_stopped_while_writing_says_its_folder_is_incomplete_in_one_line(m
     real = output.write_run
     out = tmp_path / "r"
 
-    def stopped(result, folder, figures=True):  # a first run, whole, then a rewrite stopped after the tables
-        real(result, folder, figures=False)
+    def stopped(result, folder, figures=True):  # a first run stopped after its tables
         monkeypatch.setattr(output, "atomic_write", lambda path, write: (_ for _ in ()).throw(signal_)
                             if path.name == "run.png" else real_atomic(path, write))
         return real(result, folder, figures=True)
@@ -565,7 +564,6 @@ def test_a_run_stopped_while_writing_says_its_folder_is_incomplete_in_one_line(m
     assert capsys.readouterr().err == (
         f"trackjam: {how} while writing {out}; its summary.json is written last, so the folder is incomplete "
         "until the same command runs again\n")
-    # the first run's summary.json went first: a folder without one is one whose writing stopped
     assert not (out / "summary.json").exists() and (out / "steps.parquet").exists()
 
 

@@ -47,12 +47,16 @@ class _PipeSafe(io.RawIOBase):
         try:
             return os.write(self._fd, data)
         except BrokenPipeError:
-            null = os.open(os.devnull, os.O_WRONLY)
-            try:
-                os.dup2(null, self._fd)
-            finally:
-                os.close(null)
+            self.to_null()
             return len(data)
+
+    def to_null(self) -> None:
+        """Point the descriptor at the null device."""
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, self._fd)
+        finally:
+            os.close(null)
 
     def close(self) -> None:  # the descriptor is the process's: never closed here
         self.flush()
@@ -90,3 +94,22 @@ def main() -> None:
         if err.code == TERMINATED and not cli._said_terminated:
             sys.stderr.write("trackjam: terminated\n")
         raise
+    finally:
+        _drain(sys.stdout)
+        _drain(sys.stderr)
+
+
+def _drain(stream) -> None:
+    """Flush what ``stream`` still holds; what an output that refuses it (`> /dev/full`, whose
+    one line was said) cannot take goes to the null device, instead of an "Exception ignored"
+    traceback and exit status 120 when Python flushes it on the way out."""
+    try:
+        stream.flush()
+    except OSError:
+        raw = getattr(getattr(stream, "buffer", None), "raw", None)
+        if isinstance(raw, _PipeSafe):
+            raw.to_null()
+            try:
+                stream.flush()
+            except OSError:
+                pass

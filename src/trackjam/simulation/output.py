@@ -90,10 +90,6 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
     for p in out.iterdir():
         if _leftover(p):
             p.unlink(missing_ok=True)
-    # summary.json is written last: an earlier run's goes first, so that a folder without one is
-    # always one whose writing was interrupted, a rewrite of a finished run included
-    if (out / "summary.json").is_file():
-        (out / "summary.json").unlink()
     written = []
 
     def put(name: str, write: Callable[[Path], None]) -> None:
