@@ -173,13 +173,7 @@ def interrupted(err: BaseException) -> bool:
     Python handler runs inside a callback of compiled numba code (numba unpickling a constant)
     surfaces as SystemError("... returned a result with an exception set"), chained from the
     KeyboardInterrupt."""
-    seen = set()
-    while err is not None and id(err) not in seen:
-        if isinstance(err, KeyboardInterrupt):
-            return True
-        seen.add(id(err))
-        err = err.__cause__ or err.__context__
-    return False
+    return _cause(err, KeyboardInterrupt) is not None
 
 
 def _path_option(option: str, value: str | None, what: str = "folder") -> Path | None:
