@@ -314,10 +314,6 @@ def run(
     from trackjam.simulation.output import check_out_dir
 
     check_out_dir(out, s, default)  # before any work: nothing is computed for a folder we cannot use
-    if s.control.grasp.threads is None:  # TRACKJAM_THREADS, read by the build: refused before the warnings
-        from trackjam.simulation.build import default_threads
-
-        default_threads(s.n_agents)
     _warn(s)  # after every refusal: a refused run prints its one line and nothing else
 
     from rich.console import Console
@@ -345,7 +341,7 @@ def run(
         if out.is_dir() and not (out / "summary.json").exists():
             typer.echo(f"trackjam: {how} while writing {printable(str(out))}; its summary.json is written last, "
                        "so the folder is incomplete until the same command runs again", err=True)
-        else:  # stopped before the folder was touched
+        else:  # stopped before the folder was made, or while rewriting a finished run's, whose summary.json stands
             typer.echo(f"trackjam: {how}", err=True)
         if isinstance(err, SystemExit):
             _said_terminated = True

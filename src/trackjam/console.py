@@ -64,7 +64,7 @@ class _PipeSafe(io.RawIOBase):
 
 def _pipe_safe(stream):
     """``stream`` (sys.stdout or sys.stderr) rebuilt over :class:`_PipeSafe`, with its encoding,
-    error handler and line buffering; unchanged when it has no file descriptor."""
+    error handler and buffering; unchanged when it has no file descriptor."""
     try:
         fd = stream.fileno()
         stream.flush()
@@ -72,7 +72,7 @@ def _pipe_safe(stream):
         return stream
     buffered = io.BufferedWriter(_PipeSafe(fd))
     return io.TextIOWrapper(buffered, encoding=stream.encoding, errors=stream.errors,
-                            line_buffering=stream.line_buffering or os.isatty(fd), write_through=False)
+                            line_buffering=stream.line_buffering, write_through=stream.write_through)
 
 
 def _terminated(signum, frame) -> None:

@@ -18,7 +18,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, shortened
 
 MAX_LENGTH = 1e5  # m: coordinates, heights, radii, standard deviations of positions
 MAX_SPEED = 1e3  # m/s
@@ -283,8 +283,6 @@ def threads_variable(name: str, unset: str) -> int | None:
     """The whole number of threads in [1, MAX_THREADS] that the environment variable ``name``
     sets, None when it is unset or empty; anything else is refused in one line (``unset`` says
     what leaving it unset means)."""
-    from trackjam.errors import shortened
-
     env = os.environ.get(name)
     if not env:
         return None
@@ -301,8 +299,6 @@ def check_environment() -> None:
     numba when it loads: 0 or -1 raised inside numba, text was a warning with a traceback).
     Every command checks both before it loads anything, so that `validate` refuses what `run`
     would."""
-    from trackjam.errors import shortened
-
     threads_variable("TRACKJAM_THREADS", "one per agent up to the CPU count")
     env = os.environ.get("NUMBA_NUM_THREADS")
     if env is not None:  # numba's own variable, read as numba reads it: int(), set even when empty

@@ -73,15 +73,15 @@ def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
     # every argument checked before the first episode: a bad last seed, a policy or a progress that
     # cannot be called were found after the episodes before them had run, and their rows were lost
     # (seeds of known length are all checked first; a generator, which may not end, as it goes)
-    if isinstance(seeds, Sized):
-        seeds = [_seed(seed, "rollout") for seed in seeds]  # int() made 1.5 and 1.7 the same episode
+    # int() made 1.5 and 1.7 the same episode
+    seeds = ([_seed(seed, "rollout") for seed in seeds] if isinstance(seeds, Sized)
+             else (_seed(seed, "rollout") for seed in seeds))
     if not callable(policy):
         raise TypeError(f"rollout: policy must be callable (observations -> actions), got {type(policy).__name__}")
     if progress is not None and not callable(progress):
         raise TypeError(f"rollout: progress must be callable (one row each) or None, got {type(progress).__name__}")
     rows = []
     for seed in seeds:
-        seed = _seed(seed, "rollout")
         obs, _ = env.reset(seed=seed)
         if hasattr(policy, "reset"):
             policy.reset(int(seed))
