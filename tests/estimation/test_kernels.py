@@ -11,6 +11,7 @@ from trackjam.estimation.kernels import (
     GATE,
     kernel_cv_predict,
     kernel_gated_log_g,
+    kernel_gaussian_sample,
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
     kernel_reachable,
@@ -146,9 +147,31 @@ def test_gaussian_mixture_matches_scipy():
     covs = A @ A.transpose(0, 2, 1) + np.eye(3)
     L = np.linalg.cholesky(covs)
     P = rng.normal(0, 3, (20, 3))
-    got = kernel_log_gaussian_mixture(P[:, None, :] - mu[None], np.linalg.inv(L), np.log(np.diagonal(L, axis1=1, axis2=2)).sum(1))
+    got = kernel_log_gaussian_mixture(P, mu, np.linalg.inv(L), np.log(np.diagonal(L, axis1=1, axis2=2)).sum(1))
     ref = np.log(np.mean([multivariate_normal(mu[k], covs[k]).pdf(P) for k in range(3)], axis=0))
     np.testing.assert_allclose(got, ref, rtol=1e-10)
+
+
+def test_gaussian_sample_is_the_mixture_draw_of_numpy():
+    """The compiled draw is mu_c + L_c xi, as numpy's stacked matmul computes it: within a few
+    units in the last place anywhere (it sums each product as OpenBLAS's dgemv does on x86-64,
+    where the two agree bit for bit), and exactly where no rounding can differ."""
+    rng = np.random.default_rng(7)
+    for k, n in ((1, 1), (1, 500), (4, 2000), (5, 3)):
+        mu = rng.normal(0, 30, (k, 3))
+        A = rng.normal(0, 2, (k, 3, 3))
+        L = np.linalg.cholesky(A @ A.transpose(0, 2, 1) + 0.25 * np.eye(3))
+        comp = rng.integers(k, size=n)
+        xi = rng.standard_normal((n, 3))
+        got = kernel_gaussian_sample(mu, L, comp, xi)
+        ref = mu[comp] + (L[comp] @ xi[:, :, None])[:, :, 0]
+        np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-12)
+    # integers: every product and sum is exact, so any order gives the same bits
+    L = np.tril(rng.integers(-9, 10, (2, 3, 3))).astype(float)
+    mu = rng.integers(-99, 100, (2, 3)).astype(float)
+    comp = rng.integers(2, size=50)
+    xi = rng.integers(-9, 10, (50, 3)).astype(float)
+    np.testing.assert_array_equal(kernel_gaussian_sample(mu, L, comp, xi), mu[comp] + np.einsum("nab,nb->na", L[comp], xi))
 
 
 def test_cv_predict_is_eq1():

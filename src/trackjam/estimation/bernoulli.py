@@ -387,6 +387,8 @@ class BernoulliFilter:
         self._age = np.full(self.n, NEVER)  # per row of _X, kept with filter.reserve_memory: scans since one supported its line
         self._log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
         self._young: Young | None = None
+        # the two-scan proposal's Gaussians of a scan, kept one step: (the Scan, its Gaussians)
+        self._young_gaussians: tuple[Scan | None, Gaussians | None] = (None, None)
         self._e_pred: float | None = None  # set by predict(), consumed by update()
         self._w_surv = 1.0
         self._w_birth = 0.0
@@ -464,8 +466,11 @@ class BernoulliFilter:
         component's mean for each)."""
         young = self._young
         if self.two_scan and len(young.scan.Z) and len(scan.Z):
-            G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
+            cached_scan, G_prev = self._young_gaussians
+            if cached_scan is not young.scan:
+                G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
             G_next = Gaussians.of_scan(scan.Z, scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
+            self._young_gaussians = (scan, G_next)  # the next step's G_prev when this scan's births become young
             log_L_prev: list[np.ndarray] = []  # L_{t-1} of the redrawn particles, as the proposal weighed them
 
             def weigh(X: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackjam.estimation.kernels import (
+    kernel_gaussian_sample,
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
     kernel_two_scan_velocity,
@@ -78,15 +79,12 @@ class Gaussians:
     def sample(self, rng: np.random.Generator, k: int) -> np.ndarray:
         comp = rng.integers(len(self.mu), size=k)
         xi = rng.standard_normal((k, 3))
-        return self.mu[comp] + (self.chol[comp] @ xi[:, :, None])[:, :, 0]
+        return kernel_gaussian_sample(self.mu, self.chol, comp, xi)
 
-    def log_pdf(self, P: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
-        """log of (1/k) sum_j N(p_i; mu_j + shift_i, C_j) at each row of ``P`` (n, 3)."""
-        d = P[:, None, :] - self.mu[None, :, :]
-        if shift is not None:
-            d = d - shift[:, None, :]
+    def log_pdf(self, P: np.ndarray) -> np.ndarray:
+        """log of (1/k) sum_j N(p_i; mu_j, C_j) at each row of ``P`` (n, 3)."""
         log_det = np.log(np.diagonal(self.chol, axis1=1, axis2=2)).sum(axis=1)
-        return kernel_log_gaussian_mixture(np.ascontiguousarray(d), np.linalg.inv(self.chol), log_det)
+        return kernel_log_gaussian_mixture(np.ascontiguousarray(P), self.mu, np.linalg.inv(self.chol), log_det)
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import math
 
+import llvmlite.ir as llvm_ir
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import intrinsic
 
 from trackjam.radio.antenna import kernel_cone_gain
 
@@ -155,21 +157,25 @@ def kernel_weighted_moments(X, w):
 
 
 @njit(cache=True)
-def kernel_log_gaussian_mixture(d, Linv, log_det):
-    """log of (1/k) sum_j N(d[i, j]; 0, Sigma_j) for residuals ``d`` (n, k, 3), given the inverse
-    Cholesky factors ``Linv`` (k, 3, 3) and ``log_det[j] = log det L_j``."""
-    n, k, _ = d.shape
+def kernel_log_gaussian_mixture(P, mu, Linv, log_det):
+    """log of (1/k) sum_j N(P[i]; mu_j, Sigma_j) at each row of ``P`` (n, 3), given the means
+    ``mu`` (k, 3), the inverse Cholesky factors ``Linv`` (k, 3, 3) and ``log_det[j] = log det L_j``."""
+    n = P.shape[0]
+    k = mu.shape[0]
     out = np.empty(n)
     c = -1.5 * _LOG_2PI - math.log(k)
+    d = np.empty(3)
     for i in range(n):
         mx = -np.inf
         acc = 0.0
         for j in range(k):
+            for a in range(3):
+                d[a] = P[i, a] - mu[j, a]
             q = 0.0
             for a in range(3):
                 y = 0.0
                 for b in range(a + 1):
-                    y += Linv[j, a, b] * d[i, j, b]
+                    y += Linv[j, a, b] * d[b]
                 q += y * y
             t = -log_det[j] - 0.5 * q
             if t > mx:
@@ -178,6 +184,40 @@ def kernel_log_gaussian_mixture(d, Linv, log_det):
             else:
                 acc += math.exp(t - mx)
         out[i] = c + mx + math.log(acc)
+    return out
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (LLVM's fused multiply-add)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        f64 = llvm_ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [f64], llvm_ir.FunctionType(f64, [f64, f64, f64]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def kernel_gaussian_sample(mu, chol, comp, xi):
+    """Draws of a mixture of Gaussians: row i is ``mu[comp[i]] + chol[comp[i]] @ xi[i]`` for
+    means ``mu`` (k, 3), Cholesky factors ``chol`` (k, 3, 3) and standard normals ``xi`` (n, 3).
+
+    Each product is summed as numpy's stacked matmul sums it on x86-64 (OpenBLAS's dgemv with
+    fused multiply-adds: the middle term first, then the first and the last fused in), so that
+    the runs of earlier versions, which used that matmul, are reproduced bit for bit; on any
+    machine the result is the product to the last bit or two."""
+    n = comp.shape[0]
+    out = np.empty((n, 3))
+    for i in range(n):
+        c = comp[i]
+        for a in range(3):
+            t = chol[c, a, 1] * xi[i, 1]
+            t = _fma(chol[c, a, 0], xi[i, 0], t)
+            t = _fma(chol[c, a, 2], xi[i, 2], t)
+            out[i, a] = mu[c, a] + t
     return out
 
 
