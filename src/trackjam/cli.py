@@ -253,11 +253,11 @@ def show_config(
 @app.command()
 @user_errors
 def validate(
-    file: str = typer.Argument(..., help=SCENARIO_HELP),
+    scenario: str = typer.Argument(..., help=SCENARIO_HELP),
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
 ) -> None:
-    """Check a scenario file; print `ok` or one line naming the key and the problem."""
-    s = _load(file, set_, warn=False)
+    """Check a scenario (a preset or a file); print `ok` or one line naming the key and the problem."""
+    s = _load(scenario, set_, warn=False)
     _runnable(s, set_)
     _warn(s)
     typer.echo(f"ok: {s.name}, {s.n_agents} agents, {s.steps} steps")
@@ -446,7 +446,7 @@ def experiment(
     set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
     grid: Optional[str] = typer.Option(None, "--grid", help="swarm only: TARGETSxAGENTS, e.g. 1-4x3-6 (the default)."),
 ) -> None:
-    """Run one of the paper's Monte Carlo experiments (resumable; local pool or Dask)."""
+    """Run a Monte Carlo experiment, the paper's (table1, constraints) or ours (resumable; local pool or Dask)."""
     from trackjam.experiments.cli import experiment_command
 
     out = _path_option("--out", out)

@@ -41,7 +41,7 @@ SWARM_TRACKS: tuple[Column, ...] = (
     Column("track", "str", "", "the team's label of the track: aA:B.I, agent A's track born at step B as birth I"),
     Column("existence", "float64", "", "fused existence"),
     *_xyz("est", "m", "fused position estimate"),
-    Column("members", "int64", "", "agents whose own track it fuses"),
+    Column("members", "int64", "", "number of agents whose own track it fuses"),
     Column("target", "str", "", "id of the target it holds; empty: a false track"),
 )
 
