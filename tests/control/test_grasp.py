@@ -97,3 +97,32 @@ def test_same_seed_same_solution(antenna):
     a = solve_grasp(P, rngs(9, 3), samples=300, iterations=5)
     b = solve_grasp(P, rngs(9, 3), samples=300, iterations=5)
     assert np.array_equal(a.move, b.move) and np.array_equal(a.level, b.level)
+
+
+def test_the_hot_sampling_loop_and_the_general_one_agree(antenna):
+    """_sample_block's loop of its own for one objective sample and n <= 3 finds what its general
+    loop finds on the same problem given as two samples weighted 1 and 0 (the same values, since
+    0 + 1 v + 0 v = v): the same best value and control, and the same random stream consumed."""
+    from trackjam.control.grasp import _sample_block
+
+    rng = np.random.default_rng(8)
+    for trial in range(6):
+        P = random_problem(rng, antenna, 3, 1 + trial % 3, constraints=trial % 2 == 0)
+        p_s, w = P.objective_tables()
+        N, L = P.n_agents, len(P.levels_w)
+        p_flat = p_s.reshape(1, N, -1)
+        pair_c = np.arange(p_flat.shape[2]) // L
+        pair_l = np.arange(p_flat.shape[2]) % L
+        M = P.n_cand * L
+        results = []
+        for tables, weights in ((p_flat, w), (np.concatenate([p_flat, p_flat]), np.array([1.0, 0.0]))):
+            r = np.random.default_rng(trial)
+            it_c, it_l = np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.int64)
+            best = _sample_block(r, tables, weights, M, P.at_least, 0, 3000, np.empty(N, dtype=np.int64),
+                                 np.empty(N, dtype=np.int64), np.empty(N, dtype=np.int64), np.empty(N),
+                                 np.empty(P.at_least + 1), P.gain, P.levels_w, P.delta_w, P.constraints,
+                                 pair_c, pair_l, it_c, it_l, -np.inf)
+            results.append((best, it_c, it_l, r.random()))
+        (b1, c1, l1, r1), (b2, c2, l2, r2) = results
+        assert b1 > -np.inf and b1 == b2 and r1 == r2
+        assert np.array_equal(c1, c2) and np.array_equal(l1, l2)
