@@ -13,7 +13,12 @@ from trackjam.control.assignment import (
     solve_assignment,
 )
 from trackjam.control.assignment_exact import agent_order, solve_assignment_exact
-from trackjam.control.assignment_problem import assignment_value, kernel_targets_value, target_xi
+from trackjam.control.assignment_problem import (
+    assignment_value,
+    kernel_targets_value,
+    kernel_targets_value_unrolled,
+    target_xi,
+)
 from trackjam.control.exact import pair_order, solve_exact
 from trackjam.control.objective import evaluate
 from trackjam.control.solve import SOLVERS, solve
@@ -101,6 +106,24 @@ def test_compiled_objective_is_its_numpy_twin_bit_for_bit(antenna, objective):
         for r in range(200):
             v = kernel_targets_value(P.pz, P.at_least, P.kind, cand[r] * L + level[r], target[r], kk, p, q)
             assert v == ref[r]
+
+
+@pytest.mark.parametrize("objective", ["sum", "min"])
+@pytest.mark.parametrize("at_least", [1, 2, 3])
+def test_the_unrolled_objective_is_the_compiled_one_bit_for_bit(antenna, objective, at_least):
+    """kernel_targets_value_unrolled, which GRASP's hot loop calls for n <= 3, equals
+    kernel_targets_value on every choice, one to three targets (n above the agents a target
+    has included)."""
+    rng = np.random.default_rng(at_least)
+    for K in (1, 2, 3):
+        for N in (2, 4):
+            P = random_assignment(rng, antenna, N, K, min(at_least, N), True, objective, small_displacements())
+            cand, level, target = random_choices(rng, P, 100)
+            kk, p, q = np.empty(N, dtype=np.int64), np.empty(N), np.empty(P.at_least + 1)
+            for r in range(100):
+                pair = cand[r] * P.n_levels + level[r]
+                v = kernel_targets_value(P.pz, P.at_least, P.kind, pair, target[r], kk, p, q)
+                assert kernel_targets_value_unrolled(P.pz, P.at_least, P.kind, pair, target[r], kk) == v
 
 
 @pytest.mark.parametrize("objective", ["sum", "min"])

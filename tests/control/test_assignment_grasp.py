@@ -65,3 +65,21 @@ def test_same_streams_same_plan_and_threads_change_nothing(antenna):
     for s in (b, c):
         assert np.array_equal(a.move, s.move) and np.array_equal(a.level, s.level)
         assert np.array_equal(a.target, s.target) and a.objective == s.objective
+
+
+@pytest.mark.parametrize("at_least", [1, 3, 4])
+def test_both_sampling_loops_follow_the_numpy_reference(antenna, at_least):
+    """The compiled search's loop for n <= 3 and its general loop (n = 4 here) each follow the
+    numpy twin draw for draw, with five agents and two targets."""
+    rng = np.random.default_rng(at_least)
+    P = random_assignment(rng, antenna, 5, 2, at_least, True, "sum", small_displacements(), spread=6.0)
+    neigh, n_neigh = neighbour_lists(P.targets[0], 4)
+    for me in (0, 4):
+        pair = np.zeros(P.n_agents, dtype=np.int64)
+        target = np.zeros(P.n_agents, dtype=np.int64)
+        r1, r2 = np.random.default_rng(me), np.random.default_rng(me)
+        v = assignment_grasp_chunked(r1, me, P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind,
+                                    P.constraints, P.n_cand, neigh, n_neigh, 60, 4, pair, target)
+        v_ref, p_ref, t_ref = assignment_grasp_reference(r2, me, P, neigh, n_neigh, 60, 4)
+        assert v == v_ref and np.array_equal(pair, p_ref) and np.array_equal(target, t_ref)
+        assert r1.random() == r2.random()

@@ -25,6 +25,7 @@ from trackjam.control.assignment_problem import (
     AssignmentSolution,
     assignment_value,
     kernel_targets_value,
+    kernel_targets_value_unrolled,
     to_assignment_solution,
 )
 from trackjam.control.grasp import (
@@ -96,18 +97,35 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
         if first == 0:
             it_best = -np.inf
         end = _chunk_end(samples, first, budget, used)
-        for _s in range(first, end):
-            for i in range(N):
-                pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
-                tg[i] = 0
-                while pr[i] >= blk[i]:  # pr // blk without a division: K is small
-                    pr[i] -= blk[i]
-                    tg[i] += 1
-            xi = kernel_targets_value(pz, n, kind, pr, tg, kk, p, q)
-            if xi > it_best and (not constrained or _feasible(gain, levels_w, delta, C, pr, tg, L)):
-                it_best = xi
-                it_p[:] = pr
-                it_t[:] = tg
+        # the hot case n <= 3 has a loop of its own, the general one written again on purpose:
+        # numba compiled one loop that could reach either objective 1.7x slower (swarm-3, 5
+        # agents: 0.97 -> 0.56 s per step); both draw the same stream and find the same values
+        if 1 <= n <= 3:
+            for _s in range(first, end):
+                for i in range(N):
+                    pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
+                    tg[i] = 0
+                    while pr[i] >= blk[i]:  # pr // blk without a division: K is small
+                        pr[i] -= blk[i]
+                        tg[i] += 1
+                xi = kernel_targets_value_unrolled(pz, n, kind, pr, tg, kk)
+                if xi > it_best and (not constrained or _feasible(gain, levels_w, delta, C, pr, tg, L)):
+                    it_best = xi
+                    it_p[:] = pr
+                    it_t[:] = tg
+        else:
+            for _s in range(first, end):
+                for i in range(N):
+                    pr[i] = min(int(rng.random() * M[i]), M[i] - 1)
+                    tg[i] = 0
+                    while pr[i] >= blk[i]:  # pr // blk without a division: K is small
+                        pr[i] -= blk[i]
+                        tg[i] += 1
+                xi = kernel_targets_value(pz, n, kind, pr, tg, kk, p, q)
+                if xi > it_best and (not constrained or _feasible(gain, levels_w, delta, C, pr, tg, L)):
+                    it_best = xi
+                    it_p[:] = pr
+                    it_t[:] = tg
         used += end - first
         if end < samples:  # the budget ran out inside this iteration's sampling: pause here
             _pause(fstate, istate, best, it_best, it, end, state_p, state_t, it_p, it_t)
