@@ -7,6 +7,7 @@ from hypothesis import strategies as st
 
 from trackjam.control.exact import solve_exact
 from trackjam.control.grasp import (
+    _sample_block,
     kernel_local_neighbourhood,
     local_neighbourhood_reference,
     neighbour_lists,
@@ -103,8 +104,6 @@ def test_the_hot_sampling_loop_and_the_general_one_agree(antenna):
     """_sample_block's loop of its own for one objective sample and n <= 3 finds what its general
     loop finds on the same problem given as two samples weighted 1 and 0 (the same values, since
     0 + 1 v + 0 v = v): the same best value and control, and the same random stream consumed."""
-    from trackjam.control.grasp import _sample_block
-
     rng = np.random.default_rng(8)
     for trial in range(6):
         P = random_problem(rng, antenna, 3, 1 + trial % 3, constraints=trial % 2 == 0)

@@ -197,27 +197,37 @@ def test_same_seed_same_result():
 def test_the_two_scan_gaussians_kept_from_the_last_step_change_nothing():
     """The two-scan proposal keeps the Gaussians of a scan for the next step, when that scan's
     births are the young component: a filter that builds them again each step gives the same
-    particles and estimates to the last bit."""
+    particles and estimates to the last bit, through an empty scan and a fused reset (after
+    which the kept Gaussians are of a scan that is no longer the young component's)."""
     scenario = load_scenario("paper-fig3", filter__particles=400, filter__birth_particles=200)
     x = np.array(scenario.target.initial, dtype=float)
 
     def run(keep: bool):
         f = make_filter(scenario, np.random.default_rng(11))
-        reused = 0
+        reused = stale = 0
         out = []
-        for t in range(8):
+        for t in range(12):
             f.predict()
             if not keep:
                 f._young_gaussians = (None, None)
-            elif f._young is not None and f._young_gaussians[0] is f._young.scan:
-                reused += 1
+            elif f._young is not None and f._young_gaussians[0] is not None:
+                if f._young_gaussians[0] is f._young.scan:
+                    reused += 1
+                else:
+                    stale += 1
             Z = np.vstack([h(x, U) + np.array([0.3, 0.02, -0.02]) * (t % 3), [[15.0 + t, -1.0, 2.0]]])
-            out.append(f.update(Z, U, AIM, ANT.l_max))
-        return out, f.particles, reused
+            if t == 4:
+                Z = np.empty((0, 3))  # a miss: the young component keeps its own scan
+            est = f.update(Z, U, AIM, ANT.l_max)
+            out.append(est)
+            if t == 7:  # the team's Gaussian fed back: the young component is dropped
+                f.reset_to(0.9, est.mean, est.cov)
+        return out, f.particles, reused, stale
 
-    kept, X_kept, reused = run(True)
-    fresh, X_fresh, _ = run(False)
+    kept, X_kept, reused, stale = run(True)
+    fresh, X_fresh, _, _ = run(False)
     assert reused >= 6  # the kept Gaussians were used, not built again
+    assert stale >= 1  # and a kept set of another scan was built again
     np.testing.assert_array_equal(X_kept, X_fresh)
     for a, b in zip(kept, fresh):
         assert a.existence == b.existence

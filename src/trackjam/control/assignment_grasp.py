@@ -99,7 +99,8 @@ def kernel_assignment_resume(rng, me, pz, gain, levels_w, delta, n, kind, constr
         end = _chunk_end(samples, first, budget, used)
         # the hot case n <= 3 has a loop of its own, the general one written again on purpose:
         # numba compiled one loop that could reach either objective 1.7x slower (swarm-3, 5
-        # agents: 0.97 -> 0.56 s per step); both draw the same stream and find the same values
+        # agents: 0.97 -> 0.56 s per step); both draw the same stream and find the same values.
+        # As grasp._sample_block's two loops, here inline in the one function that samples
         if 1 <= n <= 3:
             for _s in range(first, end):
                 for i in range(N):

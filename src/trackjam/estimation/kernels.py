@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-import llvmlite.ir as llvm_ir
+import llvmlite.ir as llvm_ir  # numba's own dependency, at the version numba pins
 import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
@@ -205,10 +205,13 @@ def kernel_gaussian_sample(mu, chol, comp, xi):
     """Draws of a mixture of Gaussians: row i is ``mu[comp[i]] + chol[comp[i]] @ xi[i]`` for
     means ``mu`` (k, 3), Cholesky factors ``chol`` (k, 3, 3) and standard normals ``xi`` (n, 3).
 
-    Each product is summed as numpy's stacked matmul sums it on x86-64 (OpenBLAS's dgemv with
-    fused multiply-adds: the middle term first, then the first and the last fused in), so that
-    the runs of earlier versions, which used that matmul, are reproduced bit for bit; on any
-    machine the result is the product to the last bit or two."""
+    Each product is summed in one fixed order on every machine: the middle term first, then the
+    first and the last fused in (fused multiply-adds). That is how numpy's stacked matmul sums it
+    where OpenBLAS runs its x86-64 kernels with fused multiply-adds (Haswell and later, Zen; this
+    project's machine), so there the runs of earlier versions, which used that matmul, are
+    reproduced bit for bit. Where numpy sums otherwise (x86-64 without FMA, MKL, Accelerate) the
+    earlier versions' draws differed from these in the last bit, as they differed from this
+    machine's; the draw is the same product either way."""
     n = comp.shape[0]
     out = np.empty((n, 3))
     for i in range(n):
