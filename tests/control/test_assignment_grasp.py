@@ -22,14 +22,20 @@ from control_instances import small_displacements
 def test_kernel_follows_numpy_reference(antenna, objective, n_targets):
     rng = np.random.default_rng(n_targets)
     P = random_assignment(rng, antenna, 3, n_targets, 2, True, objective, small_displacements(), spread=6.0)
+    assert_search_follows_its_twin(P, range(P.n_agents), 50, 5)
+
+
+def assert_search_follows_its_twin(P, agents, samples: int, iterations: int) -> None:
+    """Each of ``agents``' compiled searches equals the numpy twin's: value, plan and the random
+    stream both consumed."""
     neigh, n_neigh = neighbour_lists(P.targets[0], 4)
-    for me in range(P.n_agents):
+    for me in agents:
         pair = np.zeros(P.n_agents, dtype=np.int64)
         target = np.zeros(P.n_agents, dtype=np.int64)
         r1, r2 = np.random.default_rng(me), np.random.default_rng(me)
         v = assignment_grasp_chunked(r1, me, P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind,
-                                    P.constraints, P.n_cand, neigh, n_neigh, 50, 5, pair, target)
-        v_ref, p_ref, t_ref = assignment_grasp_reference(r2, me, P, neigh, n_neigh, 50, 5)
+                                    P.constraints, P.n_cand, neigh, n_neigh, samples, iterations, pair, target)
+        v_ref, p_ref, t_ref = assignment_grasp_reference(r2, me, P, neigh, n_neigh, samples, iterations)
         assert v == v_ref and np.array_equal(pair, p_ref) and np.array_equal(target, t_ref)
         assert r1.random() == r2.random()  # both drew the same stream
 
@@ -73,13 +79,4 @@ def test_both_sampling_loops_follow_the_numpy_reference(antenna, at_least):
     numpy twin draw for draw, with five agents and two targets."""
     rng = np.random.default_rng(at_least)
     P = random_assignment(rng, antenna, 5, 2, at_least, True, "sum", small_displacements(), spread=6.0)
-    neigh, n_neigh = neighbour_lists(P.targets[0], 4)
-    for me in (0, 4):
-        pair = np.zeros(P.n_agents, dtype=np.int64)
-        target = np.zeros(P.n_agents, dtype=np.int64)
-        r1, r2 = np.random.default_rng(me), np.random.default_rng(me)
-        v = assignment_grasp_chunked(r1, me, P.pz, P.gain, P.levels_w, P.delta_w, P.at_least, P.kind,
-                                    P.constraints, P.n_cand, neigh, n_neigh, 60, 4, pair, target)
-        v_ref, p_ref, t_ref = assignment_grasp_reference(r2, me, P, neigh, n_neigh, 60, 4)
-        assert v == v_ref and np.array_equal(pair, p_ref) and np.array_equal(target, t_ref)
-        assert r1.random() == r2.random()
+    assert_search_follows_its_twin(P, (0, 4), 60, 4)
