@@ -36,8 +36,6 @@ def _flags_take_no_value(cls: type) -> type:
 _Command = _flags_take_no_value(TyperCommand)
 
 
-
-
 class _Cli(typer.Typer):
     """Typer whose usage errors (``--seed abc``, an unknown option) are one line and exit 2 too,
     instead of a framed multi-line box."""

@@ -100,7 +100,6 @@ class _Loader(yaml.SafeLoader):
             node.start_mark,
         )
 
-
     def construct_yaml_set(self, node: yaml.MappingNode) -> Any:
         # `radial_steps: !!set {1, 3}` was read as a list in the set's own order
         raise yaml.constructor.ConstructorError(
