@@ -161,22 +161,30 @@ def assignment_value(problem: AssignmentProblem, cand, level, target) -> tuple[n
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _served(pair, target, k, zero, kk):
+    """Target k's view of a joint choice: ``kk[i]`` agent i's pair when it serves k, else the
+    ``zero`` slot (p_D 0); returns how many agents serve k."""
+    m = 0
+    for i in range(pair.shape[0]):
+        if target[i] == k:
+            kk[i] = pair[i]
+            m += 1
+        else:
+            kk[i] = zero
+    return m
+
+
+@njit(cache=True, nogil=True, inline="always")
 def kernel_targets_value(pz, n, kind, pair, target, kk, p, q):
     """Compiled team objective of one joint choice (``pair[i]`` = c * L + l, ``target`` (N,));
     ``kk`` (N,), ``p`` (N,) and ``q`` (n + 1,) are work buffers."""
-    K, N = pz.shape[0], pz.shape[1]
+    K = pz.shape[0]
     if K == 1:  # every agent serves the one target: Eq. (12) itself
         return _sample_xi(pz[0], pair, n, p, q)
     zero = pz.shape[2] - 1
     acc = 0.0 if kind == 0 else np.inf
     for k in range(K):
-        m = 0
-        for i in range(N):
-            if target[i] == k:
-                kk[i] = pair[i]
-                m += 1
-            else:
-                kk[i] = zero
+        m = _served(pair, target, k, zero, kk)
         x = 0.0 if m == 0 else _sample_xi(pz[k], kk, min(n, m), p, q)
         if kind == 0:
             acc += x
@@ -197,13 +205,7 @@ def kernel_targets_value_unrolled(pz, n, kind, pair, target, kk):
     zero = pz.shape[2] - 1
     acc = 0.0 if kind == 0 else np.inf
     for k in range(K):
-        m = 0
-        for i in range(N):
-            if target[i] == k:
-                kk[i] = pair[i]
-                m += 1
-            else:
-                kk[i] = zero
+        m = _served(pair, target, k, zero, kk)
         x = 0.0 if m == 0 else _xi_unrolled(pz[k], kk, min(n, m))
         if kind == 0:
             acc += x
