@@ -542,42 +542,37 @@ def test_a_ctrl_c_while_the_command_line_loads_is_one_line(monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("signal_, code, how", [(KeyboardInterrupt, 130, "interrupted"), (SystemExit(143), 143, "terminated")])
-def test_a_run_stopped_while_writing_says_its_folder_is_incomplete_in_one_line(monkeypatch, tmp_path, capsys,
-                                                                              signal_, code, how):
-    import trackjam.simulation.output as output
+def test_a_first_run_stopped_while_writing_leaves_no_folder_and_says_so_in_one_line(monkeypatch, tmp_path, capsys,
+                                                                                   signal_, code, how):
+    # each file was renamed into place as it was written: the folder was left without its summary.json
+    import trackjam.viz.figure
 
-    real = output.write_run
+    def stopped(*args, **kwargs):  # the run is stopped while its figure is drawn, after its tables
+        raise signal_
+
+    monkeypatch.setattr(trackjam.viz.figure, "plot_run", stopped)
     out = tmp_path / "r"
-
-    def stopped(result, folder, figures=True):  # a first run stopped after its tables
-        monkeypatch.setattr(output, "atomic_write", lambda path, write: (_ for _ in ()).throw(signal_)
-                            if path.name == "run.png" else real_atomic(path, write))
-        return real(result, folder, figures=True)
-
-    from trackjam.files import atomic_write as real_atomic
-
-    monkeypatch.setattr(output, "write_run", stopped)
     with pytest.raises(SystemExit) as err:
         app(["run", "paper-fig3", "--set", "steps=1", "--set", "target.occlusions=[]", "--set", "control.solver=exact",
              "--out", str(out)])
     assert err.value.code == code
-    assert capsys.readouterr().err == (
-        f"trackjam: {how} while writing {out}; its summary.json is written last, so the folder is incomplete "
-        "until the same command runs again\n")
-    assert not (out / "summary.json").exists() and (out / "steps.parquet").exists()
+    assert capsys.readouterr().err == f"trackjam: {how} while writing {out}; nothing was written\n"
+    assert list(tmp_path.iterdir()) == []
 
 
-def test_a_run_stopped_before_its_folder_was_touched_says_only_that(monkeypatch, tmp_path, capsys):
+def test_a_run_stopped_before_its_folder_was_touched_says_nothing_was_written(monkeypatch, tmp_path, capsys):
     import trackjam.simulation.output as output
 
     def interrupt(*args, **kwargs):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(output, "write_run", interrupt)
+    out = tmp_path / "r"
     with pytest.raises(SystemExit) as err:
         app(["run", "paper-fig3", "--set", "steps=1", "--set", "target.occlusions=[]", "--set", "control.solver=exact",
-             "--out", str(tmp_path / "r")])
-    assert err.value.code == 130 and capsys.readouterr().err == "trackjam: interrupted\n"
+             "--out", str(out)])
+    assert err.value.code == 130
+    assert capsys.readouterr().err == f"trackjam: interrupted while writing {out}; nothing was written\n"
 
 
 @pytest.mark.parametrize("env, redirect", [({}, "2>&1"), ({"PYTHONIOENCODING": "ascii"}, ""),

@@ -72,13 +72,15 @@ def test_ctrl_c_while_stepping_keeps_an_earlier_run_of_the_scenario_byte_for_byt
 
 
 @pytest.mark.parametrize("earlier", [False, True])
-def test_ctrl_c_while_writing_leaves_no_temporary_and_no_summary_of_the_new_run(tmp_path, monkeypatch, earlier):
+def test_ctrl_c_while_writing_leaves_the_folder_as_it_was(tmp_path, monkeypatch, earlier):
+    # each file was renamed into place as it was written: a Ctrl-C among them left the new run's
+    # first files beside the earlier run's last ones, or a new folder without its summary.json
     from typer.testing import CliRunner
 
     from trackjam import cli
     from trackjam.simulation import logs
 
-    out = tmp_path / "run"
+    out = tmp_path / "deep" / "run"
     args = ["run", "paper-fig3", "--out", str(out), "--no-figures", *_sets(FAST[1:] + ["steps=3"])]
     if earlier:
         assert CliRunner().invoke(cli.app, args).exit_code == 0
@@ -94,19 +96,60 @@ def test_ctrl_c_while_writing_leaves_no_temporary_and_no_summary_of_the_new_run(
 
     monkeypatch.setattr(logs, "write_parquet", interrupted)
     r = CliRunner().invoke(cli.app, args)
-    assert r.exit_code == 130 and "trackjam: interrupted" in r.output and "Traceback" not in r.output
-    after = _contents(out)
-    assert not [name for name in after if name.startswith(".")]  # no temporary left behind
-    if earlier:  # the same scenario: the files from agents.parquet on keep the earlier run's bytes
-        assert set(after) == set(before)
-        for name in ("agents.parquet", "measurements.parquet", "summary.json"):
-            assert after[name] == before[name]
-    else:  # summary.json is written last: its absence says the run did not finish
-        assert sorted(after) == ["scenario.yaml", "steps.parquet"]
+    assert r.exit_code == 130 and "Traceback" not in r.output
+    if earlier:  # every file keeps the earlier run's bytes, and nothing else is there
+        assert f"trackjam: interrupted while writing {out}; nothing in it was changed" in r.output
+        assert _contents(out) == before
+    else:  # the folders the write made are gone again
+        assert f"trackjam: interrupted while writing {out}; nothing was written" in r.output
+        assert not (tmp_path / "deep").exists()
     monkeypatch.setattr(logs, "write_parquet", real)
-    assert CliRunner().invoke(cli.app, args).exit_code == 0  # the rerun completes the folder
+    assert CliRunner().invoke(cli.app, args).exit_code == 0  # the rerun writes the folder
     assert sorted(_contents(out)) == ["agents.parquet", "measurements.parquet", "scenario.yaml", "steps.parquet",
                                       "summary.json"]
+
+
+@pytest.fixture
+def small_run(tmp_path):
+    out = tmp_path / "run"
+    return out, ["run", "paper-fig3", "--out", str(out), "--no-figures", *_sets(FAST[1:] + ["steps=3"])]
+
+
+def test_a_signal_during_the_renames_acts_after_them_and_is_said(tmp_path, monkeypatch, small_run):
+    # Ctrl-C and SIGTERM are held back while the staged files are renamed into place
+    import trackjam.simulation.output as output
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+
+    out, args = small_run
+    real = output.os.replace
+    moved = []
+
+    def replace(src, dst):
+        if not moved:
+            os.kill(os.getpid(), signal.SIGINT)  # arrives before the first rename
+        moved.append(Path(dst).name)
+        return real(src, dst)
+
+    monkeypatch.setattr(output.os, "replace", replace)
+    r = CliRunner().invoke(cli.app, args)
+    assert r.exit_code == 130 and "Traceback" not in r.output
+    assert f"trackjam: interrupted after writing {out} in full" in r.output
+    assert moved[-1] == "summary.json" and sorted(moved) == sorted(p.name for p in out.iterdir())
+
+
+def test_signals_held_delivers_a_held_ctrl_c_on_leaving():
+    from trackjam.simulation.output import _signals_held
+
+    reached = False
+    with pytest.raises(KeyboardInterrupt):
+        with _signals_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # a Ctrl-C not held back would interrupt this loop
+                pass
+            reached = True
+    assert reached
 
 
 # -- files that are not ours to replace ------------------------------------------------------

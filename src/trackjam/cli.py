@@ -278,6 +278,15 @@ def _step_progress(total: int, label: str):
     return line, lambda: None
 
 
+def _identity(path: Path) -> tuple[int, int, int] | None:
+    """Which file stands at ``path`` (device, inode, modification time), or None: a rename puts another there."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino, st.st_mtime_ns
+
+
 def _warm_up(s) -> None:
     """Load (or, on a first run, compile) the scenario's kernels before the timed run, saying so
     (numba is silent). The line cannot know which it will be: it said "compiling" every time."""
@@ -327,20 +336,23 @@ def run(
         result = simulate(s, progress=cb)
     finally:
         close()
+    summary = out / "summary.json"
+    before = _identity(summary)
     try:
         files = write_run(result, out, figures=figures)
-    except (KeyboardInterrupt, SystemExit) as err:  # it said "interrupted" alone, of a folder left incomplete
+    except (KeyboardInterrupt, SystemExit) as err:  # one line, saying what the folder holds now
         if isinstance(err, SystemExit) and err.code != TERMINATED:
             raise
         from trackjam.errors import printable
 
         global _said_interrupted, _said_terminated
         how = "interrupted" if isinstance(err, KeyboardInterrupt) else "terminated"
-        if out.is_dir() and not (out / "summary.json").exists():
-            typer.echo(f"trackjam: {how} while writing {printable(str(out))}; its summary.json is written last, "
-                       "so the folder is incomplete until the same command runs again", err=True)
-        else:  # stopped before the folder was made, or while rewriting a finished run's, whose summary.json stands
-            typer.echo(f"trackjam: {how}", err=True)
+        if _identity(summary) != before:  # it came while the last renames held it back: the run is there
+            typer.echo(f"trackjam: {how} after writing {printable(str(out))} in full", err=True)
+        elif out.is_dir():  # the folder was there before: the write removes one it made
+            typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing in it was changed", err=True)
+        else:
+            typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing was written", err=True)
         if isinstance(err, SystemExit):
             _said_terminated = True
             raise

@@ -5,8 +5,9 @@ Python code may call too.
 - The command line is imported under a Ctrl-C handler, so that a Ctrl-C while typer and rich load
   (the first tenth of a second) ends in the one line and exit status 130 a Ctrl-C gets later, not
   a KeyboardInterrupt traceback.
-- SIGTERM (`kill`, a batch system's time limit) raises SystemExit(143): the file being written is
-  removed on the way out (:func:`trackjam.files.atomic_write`), an experiment's pool is
+- SIGTERM (`kill`, a batch system's time limit) raises SystemExit(143): what was being written is
+  removed on the way out (a run's staging folder, :mod:`trackjam.simulation.output`; an
+  experiment's temporary file, :func:`trackjam.files.atomic_write`), an experiment's pool is
   terminated, and the command ends with one line, `trackjam: terminated`. It ended a run at once,
   status -15, with no word and sometimes a temporary file.
 - A reader that stops early (`trackjam run | head -1`, `2>&1 | head`) does not end the command:

@@ -9,7 +9,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from trackjam.config import load_scenario
-from trackjam.errors import ConfigError
+from trackjam.errors import ConfigError, OutputError
 from trackjam.simulation.output import check_out_dir
 
 FAST = ["steps=4", "control.solver=exact", "filter.particles=500", "filter.birth_particles=200"]
@@ -128,22 +128,31 @@ def test_files_get_the_umasks_mode_not_mkstemps(tmp_path, small_result):
     assert {f.stat().st_mode & 0o777 for f in files} == {0o664}
 
 
-def test_a_killed_writes_temporary_file_does_not_block_the_rerun_and_is_removed(tmp_path, small_result):
+def test_what_a_killed_write_leaves_does_not_block_the_rerun_and_is_removed(tmp_path, small_result):
     from trackjam.simulation.output import write_run
 
     out = tmp_path / "run"
     write_run(small_result, out, figures=False)
-    leftover = out / ".run.png.k3j9x_2a.tmp.png"  # what atomic_write leaves when SIGKILLed mid-figure
+    leftover = out / ".run.png.k3j9x_2a.tmp.png"  # what an earlier version's write left when SIGKILLed
     leftover.write_bytes(b"half a png")
+    stage = out / ".trackjam-staging.x8q1z0.tmp"  # what this version's leaves: its staging folder
+    stage.mkdir()
+    (stage / "steps.parquet").write_bytes(b"half a parquet")
     check_out_dir(out, small_result.scenario)
     write_run(small_result, out, figures=False)
-    assert not leftover.exists()
+    assert not leftover.exists() and not stage.exists()
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
     (out / ".notes.tmp.png").write_text("not ours")  # a hidden file of the user's is not ours to ignore
+    with pytest.raises(ConfigError, match="not empty"):
+        check_out_dir(out, small_result.scenario)
+    (out / ".notes.tmp.png").unlink()
+    (out / ".trackjam-staging.mine").mkdir()  # nor a folder that is not named as ours
     with pytest.raises(ConfigError, match="not empty"):
         check_out_dir(out, small_result.scenario)
 
 
-def test_a_full_disk_is_one_line_and_loses_nothing_written_before(tmp_path, small_result, monkeypatch):
+def test_a_full_disk_is_one_line_and_changes_nothing(tmp_path, small_result, monkeypatch):
     import errno
 
     from typer.testing import CliRunner
@@ -161,7 +170,7 @@ def test_a_full_disk_is_one_line_and_loses_nothing_written_before(tmp_path, smal
 
     def full_disk(table, path):
         calls.append(path)
-        if len(calls) == 2:  # agents.parquet, after scenario and steps were rewritten
+        if len(calls) == 2:  # agents.parquet, after scenario and steps were written
             with open(path, "wb") as f:
                 f.write(b"partial")
             raise OSError(errno.ENOSPC, "No space left on device")
@@ -171,17 +180,28 @@ def test_a_full_disk_is_one_line_and_loses_nothing_written_before(tmp_path, smal
     r = CliRunner().invoke(cli.app, ["run", "paper-fig3", "--out", str(out), "--no-figures", *sets(FAST)])
     assert r.exit_code == 2, r.output
     lines = [l for l in r.output.splitlines() if l.startswith("trackjam: error")]
-    assert len(lines) == 1 and "agents.parquet: cannot be written (No space left on device)" in lines[0]
-    assert "Traceback" not in r.output
-    after = {p.name: p.read_bytes() for p in out.iterdir()}
-    assert set(after) == set(before)  # no temporary left behind
-    # the file the disk refused and those after it keep their earlier content; those rewritten
-    # before it are whole files of the new run (its wall times differ)
-    assert after["agents.parquet"] == before["agents.parquet"]
-    assert after["measurements.parquet"] == before["measurements.parquet"]
-    for name in ("steps.parquet", "agents.parquet", "measurements.parquet"):
-        assert pq.read_table(out / name).num_rows > 0
-    assert json.loads(after["summary.json"])["seed"] == 1
+    assert len(lines) == 1 and "Traceback" not in r.output
+    assert f"agents.parquet: cannot be written (No space left on device); nothing in {out} was changed" in lines[0]
+    # every file keeps the earlier run's bytes (it rewrote steps.parquet before the disk filled),
+    # and nothing else is left there
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert json.loads(before["summary.json"])["seed"] == 1
+
+
+def test_a_full_disk_in_a_new_folder_leaves_no_folder(tmp_path, small_result, monkeypatch):
+    import errno
+
+    from trackjam.simulation import logs
+    from trackjam.simulation.output import write_run
+
+    def full_disk(table, path):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(logs, "write_parquet", full_disk)
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(OutputError, match="steps.parquet: cannot be written"):
+        write_run(small_result, tmp_path / "kept" / "a" / "b", figures=False)
+    assert [p.name for p in tmp_path.iterdir()] == ["kept"] and not any((tmp_path / "kept").iterdir())
 
 
 def test_markup_in_an_out_path_is_printed_literally_and_the_warm_up_is_announced(tmp_path):

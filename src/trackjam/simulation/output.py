@@ -2,21 +2,28 @@
 
 The folder is checked before any work starts: a file, an unwritable place, or a non-empty
 folder that holds anything but an earlier run of the very same resolved scenario is refused,
-so nothing of the user's is overwritten. Each file is written to a temporary name and renamed;
-the hidden temporaries an interrupted write leaves behind (a SIGKILL) are ours, ignored by the
-check and removed by the next write. A write that fails (a full disk) is one line, and the files
-already there keep their earlier content.
+so nothing of the user's is overwritten. The run's files are written into a hidden staging
+folder inside it and moved into place together at the end, with Ctrl-C and SIGTERM held back
+for those few renames: a write that is interrupted or fails (a full disk) leaves the folder as
+it was, an earlier run's files whole and none of the new ones, and a folder the write made is
+removed again. What a SIGKILL leaves behind (the hidden staging folder, or a temporary file of
+an earlier version) is ours, ignored by the check and removed by the next write.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
+import signal
+import tempfile
+import threading
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from trackjam.errors import ConfigError, OutputError
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
+from trackjam.files import TEMP_MARK, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
 from trackjam.simulation.build import figure_settings, scenario_text
 
 if TYPE_CHECKING:
@@ -33,6 +40,7 @@ RUN_FILES = (
     "run.png",
     "replay.html",
 )
+STAGING = ".trackjam-staging."  # prefix of the hidden folder a run's files are written in first
 
 
 def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
@@ -66,7 +74,62 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
 
 
 def _leftover(p: Path) -> bool:
+    """Ours to remove: the staging folder of a write that was killed, or a temporary file of one."""
+    if p.name.startswith(STAGING) and p.name.endswith(TEMP_MARK):
+        return p.is_dir() and not p.is_symlink()
     return p.is_file() and any(is_temporary_of(p, name) for name in RUN_FILES)
+
+
+def _remove_leftovers(out: Path) -> None:
+    for p in out.iterdir():
+        if _leftover(p):
+            shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+
+
+@contextmanager
+def _signals_held():
+    """Hold Ctrl-C and SIGTERM back while the staged files are renamed into place, so that a
+    folder is never left half old and half new; a signal that came meanwhile acts right after.
+
+    Python runs its signal handlers in the main thread; there the handlers are swapped for one
+    that only notes the signal (masking the signal would not do: another thread of the process,
+    numba's or BLAS's, may receive it). Elsewhere no Ctrl-C can land in this code."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        for s in dict.fromkeys(caught):
+            signal.raise_signal(s)
+
+
+def _made_by(out: Path) -> Path | None:
+    """The highest folder that ``out.mkdir(parents=True)`` is about to make, or None if ``out`` exists."""
+    top = None
+    p = out.absolute()
+    while not p.exists():
+        top, p = p, p.parent
+    return top
+
+
+def _unmake(out: Path, top: Path | None) -> None:
+    """Remove the folders from ``out`` up to ``top`` that the write made, if they are still empty."""
+    if top is None:
+        return
+    p = out.absolute()
+    while True:
+        try:
+            p.rmdir()
+        except OSError:
+            return
+        if p == top:
+            return
+        p = p.parent
 
 
 def write_run(result, out: Path, figures: bool = True) -> list[Path]:
@@ -83,41 +146,57 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)
     check_out_dir(out, result.scenario)
+    top = _made_by(out)
+    stage = None
+    names: list[str] = []
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
-    for p in out.iterdir():
-        if _leftover(p):
-            p.unlink(missing_ok=True)
-    written = []
-
-    def put(name: str, write: Callable[[Path], None]) -> None:
         try:
-            atomic_write(out / name, write)
+            out.mkdir(parents=True, exist_ok=True)
         except OSError as err:
-            raise OutputError(
-                f"{out / name}: cannot be written ({err.strerror or err}); "
-                f"the {len(written)} files written before it, and any earlier {name}, are intact"
-            ) from None
-        written.append(out / name)
+            raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
+        _remove_leftovers(out)
+        try:
+            stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
+        except OSError as err:
+            raise OutputError(f"--out {out}: cannot write in the folder ({err.strerror or err})") from None
 
-    put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
-    tables = getattr(result, "tables", None) or {
-        "steps": result.steps, "agents": result.agents, "measurements": result.measurements}
-    for name, columns in tables.items():
-        put(f"{name}.parquet", lambda p, columns=columns: write_parquet(columns, p))
-    if figures and "tracks" in tables:
-        from trackjam.viz.swarm import plot_swarm
+        def put(name: str, write: Callable[[Path], None]) -> None:
+            try:
+                write(stage / name)
+            except OSError as err:
+                raise OutputError(f"{out / name}: cannot be written ({err.strerror or err}); "
+                                  f"nothing in {out} was changed") from None
+            names.append(name)
 
-        put("run.png", lambda p: plot_swarm(tables, figure_settings(result.scenario), p))
-    elif figures:
-        from trackjam.viz.figure import plot_run
-        from trackjam.viz.replay import write_replay
+        put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
+        tables = getattr(result, "tables", None) or {
+            "steps": result.steps, "agents": result.agents, "measurements": result.measurements}
+        for name, columns in tables.items():
+            put(f"{name}.parquet", lambda p, columns=columns: write_parquet(columns, p))
+        if figures and "tracks" in tables:
+            from trackjam.viz.swarm import plot_swarm
 
-        fs = figure_settings(result.scenario)
-        put("run.png", lambda p: plot_run(result.steps, result.agents, fs, p))
-        put("replay.html", lambda p: write_replay(result.steps, result.agents, fs, p))
-    # last: a new folder without it holds a run interrupted while writing (Ctrl-C, a full disk)
-    put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
-    return written
+            put("run.png", lambda p: plot_swarm(tables, figure_settings(result.scenario), p))
+        elif figures:
+            from trackjam.viz.figure import plot_run
+            from trackjam.viz.replay import write_replay
+
+            fs = figure_settings(result.scenario)
+            put("run.png", lambda p: plot_run(result.steps, result.agents, fs, p))
+            put("replay.html", lambda p: write_replay(result.steps, result.agents, fs, p))
+        put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
+        with _signals_held():
+            for k, name in enumerate(names):  # summary.json last
+                try:
+                    os.replace(stage / name, out / name)
+                except OSError as err:  # the check refused a folder at these names; a race is left
+                    raise OutputError(
+                        f"{out / name}: cannot be replaced ({err.strerror or err}); "
+                        f"{k} of the run's {len(names)} files were moved into {out} before it") from None
+    except BaseException:
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
+        _unmake(out, top)
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
+    return [out / name for name in names]
