@@ -82,8 +82,12 @@ def _leftover(p: Path) -> bool:
 
 def _remove_leftovers(out: Path) -> None:
     for p in out.iterdir():
-        if _leftover(p):
-            shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+        if not _leftover(p):
+            continue
+        if p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
 
 
 @contextmanager
@@ -133,7 +137,8 @@ def _unmake(out: Path, top: Path | None) -> None:
 
 
 def write_run(result, out: Path, figures: bool = True) -> list[Path]:
-    """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``; return the files."""
+    """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``, whole or not at all (the
+    module docstring); return the files."""
     from trackjam.simulation.logs import write_parquet
 
     # checked before anything is written: a text result was an AttributeError, None or 5 pathlib's
