@@ -41,6 +41,8 @@ def _state(sim):
         (([0, 0, 0], [1.0, 0, 0]), "levels must be 3 integers"),
         (([np.nan, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
         (([True, False, False], [0, 0, 0]), "moves must be 3 integers"),
+        (([True, 0, 0], [0, 0, 0]), "moves must be 3 integers"),  # numpy read it as [1, 0, 0]
+        (([0, 0, 0], [1, np.bool_(True), 0]), "levels must be 3 integers"),
         (([None, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
         (([2**63, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
         (("abc", [0, 0, 0]), "moves must be 3 integers"),

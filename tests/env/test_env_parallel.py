@@ -248,3 +248,10 @@ def test_render_gives_the_figure_as_pixels_and_writes_the_replay(tmp_path):
     path = env.render()
     assert path.read_text().count("trackjam-replay") >= 1
     assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
+
+
+@pytest.mark.parametrize("n", [0, -1, True, 2.0, "3", None])
+def test_observation_layout_refuses_what_is_not_a_team_size(n):
+    with pytest.raises(ValueError, match=r"^n_agents: expected a whole number >= 1"):
+        observation_layout(n)
+    assert len(observation_layout(np.int64(1))) == 11  # one agent: its own entries and the time

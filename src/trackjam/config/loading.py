@@ -114,11 +114,16 @@ _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
 _Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
 _Loader.add_constructor("tag:yaml.org,2002:binary", _Loader.construct_yaml_binary)
 _Loader.add_constructor("tag:yaml.org,2002:set", _Loader.construct_yaml_set)
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
+_EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")  # 1e3, 2.5E-4
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, list("-+0123456789"))
+
+
+class _Dumper(yaml.SafeDumper):
+    """Writes what :class:`_Loader` reads back as written: a text that the loader would read as a
+    number (``"1e3"``: PyYAML's YAML 1.1 takes it for text and wrote it bare) is quoted."""
+
+
+_Dumper.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, list("-+0123456789"))
 
 
 class TooLarge(yaml.YAMLError):
@@ -579,4 +584,4 @@ def scenario_to_dict(s: Scenario) -> dict:
 
 
 def scenario_to_yaml(s: Scenario) -> str:
-    return yaml.safe_dump(scenario_to_dict(s), sort_keys=False, default_flow_style=None)
+    return yaml.dump(scenario_to_dict(s), Dumper=_Dumper, sort_keys=False, default_flow_style=None)

@@ -23,7 +23,10 @@ MATE_BLOCK = 11  # received flag, position (3), predicted state (6), predicted e
 
 
 def observation_layout(n_agents: int) -> list[str]:
-    """The name of every entry of an agent's observation (the same for every agent)."""
+    """The name of every entry of an agent's observation (the same for every agent), for a team
+    of ``n_agents`` >= 1 (it gave a layout for 0 and -1 agents)."""
+    if isinstance(n_agents, (bool, np.bool_)) or not isinstance(n_agents, (int, np.integer)) or n_agents < 1:
+        raise ValueError(f"n_agents: expected a whole number >= 1 (the team's size), got {n_agents!r:.60}")
     names = ["own.x", "own.y", "own.z"] + [f"own.est.{s}" for s in STATE] + ["own.est.e"]
     for k in range(1, n_agents):
         names += [f"mate{k}.received", f"mate{k}.x", f"mate{k}.y", f"mate{k}.z"]

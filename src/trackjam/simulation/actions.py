@@ -23,7 +23,7 @@ def checked_actions(actions, positions: np.ndarray, displacements: np.ndarray, n
             a = np.asarray(given)
         except (ValueError, TypeError):  # ragged nested lists
             a = np.asarray(None)
-        if a.shape != (n,) or a.dtype.kind not in "iu":
+        if a.shape != (n,) or a.dtype.kind not in "iu" or _has_bool(given):
             raise ValueError(f"actions: {name} must be {n} integers (one per agent), got {_shown(given)}")
         bad = np.flatnonzero((a < 0) | (a >= size))
         if bad.size:
@@ -35,6 +35,16 @@ def checked_actions(actions, positions: np.ndarray, displacements: np.ndarray, n
         if not admissible_moves(positions[j], displacements[moves[j]: moves[j] + 1], low, high)[0]:
             raise ValueError(f"actions: moves[{j}] = {moves[j]} takes agent {j} out of the area (not admissible)")
     return moves, out[1]
+
+
+def _has_bool(given) -> bool:
+    """A True or False among the entries: numpy reads [True, 0, 0] as the integers [1, 0, 0]."""
+    if isinstance(given, np.ndarray):
+        return given.dtype.kind == "b"
+    try:
+        return any(isinstance(v, (bool, np.bool_)) for v in given)
+    except TypeError:
+        return False
 
 
 def _shown(value) -> str:
