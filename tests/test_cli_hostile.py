@@ -375,6 +375,32 @@ def test_a_good_thread_count_in_the_environment_is_taken(variable, value):
     assert r.returncode == 0 and r.stdout.startswith("ok"), r.stderr
 
 
+@pytest.mark.parametrize("args", [["validate", "paper-fig3"], ["run", "paper-fig3", "--set", "steps=1", "--out", "{tmp}/r"]])
+@pytest.mark.parametrize("variable, value, words", [
+    ("NUMBA_OPT", "abc", "NUMBA_OPT='abc': numba cannot read this value"),
+    ("NUMBA_DEVELOPER_MODE", "xyz", "NUMBA_DEVELOPER_MODE='xyz': numba cannot read this value"),
+    ("NUMBA_DISABLE_JIT", "1", "NUMBA_DISABLE_JIT: trackjam's kernels must be compiled"),
+])
+def test_a_numba_variable_that_would_break_a_run_is_one_line(tmp_path, args, variable, value, words):
+    # NUMBA_OPT=abc printed numba's warning of ten lines with a traceback and went on; with
+    # NUMBA_DISABLE_JIT=1 validate said ok and run failed with a traceback of 160 lines
+    import os
+
+    r = subprocess.run([sys.executable, "-m", "trackjam", *[a.format(tmp=tmp_path) for a in args]],
+                       capture_output=True, text=True, env={**os.environ, variable: value})
+    assert _one_line(r).startswith(f"trackjam: error: {words}")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("variable, value", [("NUMBA_OPT", "2"), ("NUMBA_DISABLE_JIT", "0"), ("NUMBA_OPT", "max")])
+def test_a_numba_variable_numba_reads_is_taken(variable, value):
+    import os
+
+    r = subprocess.run([sys.executable, "-m", "trackjam", "validate", "paper-fig3"], capture_output=True, text=True,
+                       env={**os.environ, variable: value})
+    assert r.returncode == 0 and r.stdout.startswith("ok") and r.stderr == "", r.stderr
+
+
 @pytest.mark.parametrize("args", [["run", "paper-fig3", "--set", "steps=1", "--out", ""],
                                   ["experiment", "table1", "--trials", "1", "--steps", "1", "--out", ""],
                                   ["bench", "--quick", "--only", "control", "--json", ""]])

@@ -294,11 +294,12 @@ def threads_variable(name: str, unset: str) -> int | None:
 
 
 def check_environment() -> None:
-    """Refuse, in one line, a thread count in the environment that a command would trip over:
-    ``TRACKJAM_THREADS`` (read when a run builds its GRASP) and ``NUMBA_NUM_THREADS`` (read by
-    numba when it loads: 0 or -1 raised inside numba, text was a warning with a traceback).
-    Every command checks both before it loads anything, so that `validate` refuses what `run`
-    would."""
+    """Refuse, in one line, a setting in the environment that a command would trip over:
+    ``TRACKJAM_THREADS`` (read when a run builds its GRASP), ``NUMBA_NUM_THREADS`` (read by
+    numba when it loads: 0 or -1 raised inside numba, text was a warning with a traceback), any
+    other ``NUMBA_*`` variable numba cannot parse (:func:`_numba_variables`) and
+    ``NUMBA_DISABLE_JIT``. Every command checks them before it loads anything, so that
+    `validate` refuses what `run` would."""
     threads_variable("TRACKJAM_THREADS", "one per agent up to the CPU count")
     env = os.environ.get("NUMBA_NUM_THREADS")
     if env is not None:  # numba's own variable, read as numba reads it: int(), set even when empty
@@ -309,3 +310,33 @@ def check_environment() -> None:
         if not 1 <= n <= NUMBA_MAX_THREADS:
             raise ConfigError(f"NUMBA_NUM_THREADS={shortened(env, 40)!r}: must be a whole number of threads >= 1 "
                               "(or unset: numba's default, the CPU count)")
+    if any(k.startswith("NUMBA_") and k != "NUMBA_NUM_THREADS" for k in os.environ):
+        _numba_variables()
+
+
+_UNPARSED = re.compile(r"Environment variable '(\w+)' is defined but its associated value '(.*?)' could not be parsed",
+                       re.DOTALL)
+
+
+def _numba_variables() -> None:
+    """numba's other variables, read as numba reads them when it loads (the import is paid only
+    when one is set). One it cannot parse was a warning of about ten lines with a traceback, and
+    numba went on with its default; ``NUMBA_DISABLE_JIT=1`` ran every kernel as Python, which
+    failed at the first compiled intrinsic with a traceback of 160 lines (and would have made a
+    run take hours)."""
+    import sys
+    import warnings
+
+    if "numba" not in sys.modules:  # loaded now, its warnings are caught; loaded before, they were said
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            import numba.core.config  # noqa: F401
+        for w in caught:
+            if m := _UNPARSED.search(str(w.message)):
+                raise ConfigError(f"{m.group(1)}={shortened(m.group(2), 40)!r}: numba cannot read this value "
+                                  "(see numba's documentation of its environment variables), or unset it")
+    from numba.core import config
+
+    if config.DISABLE_JIT:
+        raise ConfigError("NUMBA_DISABLE_JIT: trackjam's kernels must be compiled (uncompiled, a run would take "
+                          "hours, and one kernel uses an LLVM intrinsic that has no Python form); unset it")
