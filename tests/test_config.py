@@ -77,7 +77,7 @@ def test_overrides_are_dotted_and_validated():
         ("antenna.power_levels_db=[-7, 0]", "antenna.power_levels_db", "must be off"),
         ("antenna.power_levels_db=[off]", "antenna.power_levels_db", "at least one"),
         ("control.at_least=4", "control.at_least", "exceeds"),
-        ("agents.initial=[[200, 0, 0], [1, 1, 1], [2, 2, 2]]", "agents.initial[0]", "outside the area"),
+        ("agents.initial=[[200, 0, 0], [1, 1, 1], [2, 2, 2]]", "agents.initial[0]", "outside the `area` [0, 0, 0] to [100, 100, 100]"),
         ("sensor.clutter_rate=-1", "sensor.clutter_rate", "greater than or equal to 0"),
         ("control.solver=magic", "control.solver", "greedy"),
         ("filter.visibility.hide=1.5", "filter.visibility.hide", "less than or equal to 1"),

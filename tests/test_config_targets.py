@@ -98,7 +98,7 @@ def test_ids_one_and_text_one_are_the_same_id():
         ({"targets": []}, ["targets:", "empty"]),
         ({"targets": [{"id": 3}, {}, {"id": 3}]}, ["targets:", "targets[0] and targets[2]", "same id 3"]),
         ({"targets": [{"id": "a"}, {}, {"id": 1}]}, ["targets:", "same id 1"]),
-        ({"targets": [{}, {"initial": [10, 10, 120, 0, 0, 0]}]}, ["targets[1].initial", "outside the area"]),
+        ({"targets": [{}, {"initial": [10, 10, 120, 0, 0, 0]}]}, ["targets[1].initial", "outside the `area`"]),
         ({"targets": [{"id": True}]}, ["targets.0.id", "integer or a text"]),
         ({"targets": [{"id": 2.5}]}, ["targets.0.id", "integer or a text"]),
         ({"targets": [{"id": " a"}]}, ["targets.0.id", "1 to 100 characters"]),

@@ -264,6 +264,19 @@ def test_the_cli_blames_steps_past_the_bound_on_the_option(tmp_path):
     assert not (tmp_path / "e").exists()
 
 
+@pytest.mark.parametrize("experiment, item, words", [
+    # the area's message named agents.initial, which these experiments do not let a --set change
+    ("table1", "area.high=[1,1,1]", "agents.initial[0] [30.0, 30.0, 30.0] lies outside the `area` [0, 0, 0] to [1, 1, 1]"),
+    # a --set that clashes with a configuration's own settings was blamed on the configuration
+    ("constraints", "control.close_in=0.5", "control.close_in (0.5): control.constraints `false` plans"),
+])
+def test_a_set_that_makes_another_key_a_problem_is_blamed(tmp_path, experiment, item, words):
+    with pytest.raises(ConfigError) as err:
+        run_experiment(experiment, trials=1, steps=3, workers=1, out=tmp_path / "e", overrides=[item])
+    assert str(err.value).startswith(f"--set {item}: {words}"), err.value
+    assert not (tmp_path / "e").exists()
+
+
 @pytest.mark.parametrize("kind", ["fifo", "zero", "huge", "folder"])
 def test_an_experiment_json_that_is_not_a_small_file_is_one_line_without_reading_it(tmp_path, kind):
     # a pipe waited forever for a writer; /dev/zero (a link to it) or a 16 GB file was read whole,

@@ -743,19 +743,24 @@ class Scenario(_Model):
         lo, hi = self.area.low, self.area.high
         for j, u in enumerate(self.agents.initial):
             if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):
-                raise ValueError(f"agents.initial[{j}] {list(u)} lies outside the area")
+                raise ValueError(f"agents.initial[{j}] {list(u)} lies outside the `area` {self._box()}")
         for k, f in enumerate(self.comms.failures):
             if f.agent >= n:
                 raise ValueError(f"comms.failures[{k}].agent {f.agent} is not an agent index (0..{n - 1} in agents.initial)")
         if self.target.initial is not None and self.targets is None:
             x = self.target.initial
             if any(not lo[k] <= x[k] <= hi[k] for k in range(3)):
-                raise ValueError(f"target.initial position {list(x[:3])} lies outside the area")
+                raise ValueError(f"target.initial position {list(x[:3])} lies outside the `area` {self._box()}")
         for j, tg in enumerate(self.targets or []):
             if tg.initial is not None and any(not lo[k] <= tg.initial[k] <= hi[k] for k in range(3)):
-                raise ValueError(f"targets[{j}].initial position {list(tg.initial[:3])} (id {tg.id!r}) lies outside the area")
+                raise ValueError(f"targets[{j}].initial position {list(tg.initial[:3])} (id {tg.id!r}) lies outside the "
+                                 f"`area` {self._box()}")
         check_resources(self)
         return self
+
+    def _box(self) -> str:
+        """The area as a message shows it: ``[0, 0, 0] to [100, 100, 100]``."""
+        return " to ".join("[" + ", ".join(f"{v:g}" for v in corner) + "]" for corner in (self.area.low, self.area.high))
 
     # Derived quantities used everywhere.
     @property

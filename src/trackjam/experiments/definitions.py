@@ -309,11 +309,13 @@ def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = 
 
 
 def trial_scenario(
-    experiment: Experiment, base: dict, configuration: Configuration, draw: TrialDraw, seed: int
+    experiment: Experiment, base: dict, configuration: Configuration, draw: TrialDraw, seed: int,
+    overrides: list[str] | None = None,
 ) -> Scenario:
     """The validated scenario of trial ``draw`` under ``configuration``: the draw's start (a DRAW
     experiment; a SEED experiment keeps Fig. 3's) and a seed of (experiment seed, trial) alone,
-    the same under every configuration."""
+    the same under every configuration. A problem with a key one of ``overrides`` set (a
+    ``--set`` that clashes with a configuration's settings) is blamed on that ``--set`` item."""
     data = apply_overrides(base, [])
     placed = trial_fields(draw) if experiment.trials == DRAW else {}
     for key, value in {**configuration.settings, **placed}.items():
@@ -322,7 +324,8 @@ def trial_scenario(
     # (configuration 0 is no configuration's), so configurations are compared on the same truth
     data["seed"] = simulation_seed(seed, 0, draw.index)
     data["name"] = f"{experiment.name}-c{configuration.index}-t{draw.index}"
-    return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}")
+    return validate_scenario(data, f"experiment {experiment.name}, configuration {configuration.index}",
+                             overridden_keys(overrides))
 
 
 def base_scenario(base: dict, preset: str = BASE_PRESET, overrides: list[str] | None = None) -> Scenario:

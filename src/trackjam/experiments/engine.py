@@ -346,7 +346,7 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
     else:
         draws = [draw_for(base, seed, k) for k in range(trials)]
         scenarios = {
-            (c.index, d.index): trial_scenario(experiment, base, c, d, seed)
+            (c.index, d.index): trial_scenario(experiment, base, c, d, seed, overrides)
             for c in experiment.configurations
             for d in draws
         }
