@@ -248,7 +248,24 @@ def test_write_run_checks_its_arguments_before_writing(tmp_path):
                             ((r, tmp_path / "b"), {"figures": "no"}, "figures must be True or False")]:
         with pytest.raises(TypeError, match=f"^write_run: {words}"):
             write_run(*args, **kw)
+    with pytest.raises(ValueError, match="^write_run: out holds a NUL character"):  # os's "embedded null byte"
+        write_run(r, str(tmp_path / "w\x005"), figures=False)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("preset", ["paper-fig3", "swarm-3"])
+def test_a_result_before_the_first_step_is_refused_in_words(preset):
+    # it was KeyError: 'jammed' from inside the summary (numpy warned of an empty mean for swarm-3)
+    from trackjam.simulation.engine import Simulation
+    from trackjam.simulation.loop import simulate
+    from trackjam.simulation.swarm import SwarmSimulation
+
+    s = trackjam.load_scenario(preset, ["filter.particles=100", "filter.birth_particles=20"])
+    sim = Simulation(s) if preset == "paper-fig3" else SwarmSimulation(s)
+    with pytest.raises(RuntimeError, match=r"^result\(\) before the first step: call step\(\) first$"):
+        sim.result()
+    with pytest.raises(RuntimeError, match=r"^result\(\) before the first step"):
+        simulate(s.model_copy(update={"steps": 0}))  # a copy that skipped validation runs no step
 
 
 def test_overrides_in_a_numpy_array_are_read_in_order():

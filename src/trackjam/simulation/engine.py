@@ -250,6 +250,8 @@ class Simulation:
 
     def result(self) -> RunResult:
         """The logs so far, as column arrays, and their summary."""
+        if self.t == 0:  # the summary of no step was a KeyError from inside it
+            raise RuntimeError("result() before the first step: call step() first")
         c = self.c
         steps, agents, meas = self.log.columns()
         summary = summarise(steps, agents, name=c.name, seed=c.seed, n_agents=c.n_agents,

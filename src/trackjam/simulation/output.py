@@ -147,6 +147,8 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         raise TypeError(f"write_run: result must be what trackjam.simulate returns, got {type(result).__name__}")
     if not isinstance(out, (str, os.PathLike)) or not str(out):
         raise TypeError(f"write_run: out must be a folder's path, got {type(out).__name__} {out!r:.60}")
+    if "\x00" in os.fspath(out):  # os's "embedded null byte", from deep in pathlib
+        raise ValueError(f"write_run: out holds a NUL character, which no path may: {out!r:.60}")
     if not isinstance(figures, bool):
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)

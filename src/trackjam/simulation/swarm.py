@@ -363,6 +363,8 @@ class SwarmSimulation:
 
     def result(self) -> SwarmResult:
         """The logs so far, as column arrays, and their summary."""
+        if self.t == 0:  # the summary of no step was a KeyError from inside it
+            raise RuntimeError("result() before the first step: call step() first")
         b = self.c.base
         tables = self.log.columns()
         summary = swarm_summary(tables, self.log.ids, name=b.name, seed=b.seed, solver=b.plan.solver,
