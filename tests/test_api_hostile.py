@@ -43,6 +43,7 @@ def _state(sim):
         (([True, False, False], [0, 0, 0]), "moves must be 3 integers"),
         (([True, 0, 0], [0, 0, 0]), "moves must be 3 integers"),  # numpy read it as [1, 0, 0]
         (([0, 0, 0], [1, np.bool_(True), 0]), "levels must be 3 integers"),
+        (([np.array(True), 0, 0], [0, 0, 0]), "moves must be 3 integers"),
         (([None, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
         (([2**63, 0, 0], [0, 0, 0]), "moves must be 3 integers"),
         (("abc", [0, 0, 0]), "moves must be 3 integers"),
@@ -250,6 +251,13 @@ def test_write_run_checks_its_arguments_before_writing(tmp_path):
             write_run(*args, **kw)
     with pytest.raises(ValueError, match="^write_run: out holds a NUL character"):  # os's "embedded null byte"
         write_run(r, str(tmp_path / "w\x005"), figures=False)
+
+    class BytesPath:  # a path-like whose path is bytes
+        def __fspath__(self):
+            return bytes(tmp_path / "w")
+
+    with pytest.raises(TypeError, match="^write_run: out must be a folder's path as text"):
+        write_run(r, BytesPath(), figures=False)
     assert list(tmp_path.iterdir()) == []
 
 

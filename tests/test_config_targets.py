@@ -102,9 +102,10 @@ def test_ids_one_and_text_one_are_the_same_id():
         ({"targets": [{"id": True}]}, ["targets.0.id", "integer or a text"]),
         ({"targets": [{"id": 2.5}]}, ["targets.0.id", "integer or a text"]),
         ({"targets": [{"id": " a"}]}, ["targets.0.id", "1 to 100 characters"]),
-        ({"targets": [{"id": "a"}, {"id": "a\x00"}]}, ["targets.1.id", "control characters"]),  # merged in the log
-        ({"targets": [{"id": "a\nb"}]}, ["targets.0.id", "control characters"]),
-        ({"targets": [{"id": "a\x85b"}]}, ["targets.0.id", "control characters"]),
+        ({"targets": [{"id": "a"}, {"id": "a\x00"}]}, ["targets.1.id", "non-printing characters"]),  # merged in the log
+        ({"targets": [{"id": "a\nb"}]}, ["targets.0.id", "non-printing characters"]),
+        ({"targets": [{"id": "a\x85b"}]}, ["targets.0.id", "non-printing characters"]),
+        ({"targets": [{"id": "a\u2028b"}]}, ["targets.0.id", "non-printing characters"]),
         ({"targets": [{"id": 2**70}]}, ["targets.0.id", "2^63"]),
         ({"targets": [{"appear": 3}]}, ["targets.0.appear", "unknown key"]),
         ({"targets": [{"appears": 5, "disappears": 3}]}, ["targets.0", "disappears must be >= appears"]),

@@ -337,7 +337,7 @@ def run(
     finally:
         close()
     summary = out / "summary.json"
-    before = _identity(summary)
+    before, existed = _identity(summary), out.is_dir()
     try:
         files = write_run(result, out, figures=figures)
     except (KeyboardInterrupt, SystemExit) as err:  # one line, saying what the folder holds now
@@ -349,7 +349,7 @@ def run(
         how = "interrupted" if isinstance(err, KeyboardInterrupt) else "terminated"
         if _identity(summary) != before:  # it came while the last renames held it back: the run is there
             typer.echo(f"trackjam: {how} after writing {printable(str(out))} in full", err=True)
-        elif out.is_dir():  # the folder was there before: the write removes one it made
+        elif existed:  # else the write removed the folders it made
             typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing in it was changed", err=True)
         else:
             typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing was written", err=True)

@@ -213,3 +213,20 @@ def test_markup_in_an_out_path_is_printed_literally_and_the_warm_up_is_announced
     assert lines[0] == "loading the compiled kernels (compiling them on the first run only, 6-12 s)"
     assert lines[1] == "paper-fig3: step 1/4"
     assert lines[-1] == f"wrote 5 files to {out}"
+
+
+def test_a_failed_write_through_dotdot_removes_only_the_folders_it_made(tmp_path, small_result, monkeypatch):
+    # the folders were found by walking up the path as written: `new/../kept/run` removed `kept`
+    import errno
+
+    from trackjam.simulation import logs
+    from trackjam.simulation.output import write_run
+
+    def full_disk(table, path):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(logs, "write_parquet", full_disk)
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(OutputError, match="nothing in .* was changed"):
+        write_run(small_result, tmp_path / "new" / ".." / "kept" / "run", figures=False)
+    assert [p.name for p in tmp_path.iterdir()] == ["kept"] and not any((tmp_path / "kept").iterdir())

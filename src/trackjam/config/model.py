@@ -6,7 +6,6 @@ from __future__ import annotations
 import decimal
 import math
 import numbers
-import unicodedata
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -223,8 +222,9 @@ def _target_id(v: Any) -> Any:
     if isinstance(v, str):
         if not 1 <= len(v) <= MAX_ID_CHARS or v != v.strip():
             raise ValueError(f"a text id must have 1 to {MAX_ID_CHARS} characters and no surrounding blanks, got {v!r}")
-        if any(unicodedata.category(ch) == "Cc" for ch in v):  # a NUL merged two targets in targets.parquet
-            raise ValueError(f"a text id must not hold control characters (NUL, a line break, a tab), got {v!r}")
+        if not v.isprintable():  # a NUL merged two targets in targets.parquet
+            raise ValueError(f"a text id must not hold control or other non-printing characters (NUL, a line "
+                             f"break, a tab, U+2028), got {v!r}")
         return v
     if isinstance(v, float) and v.is_integer() and abs(v) < 2**63:
         return int(v)
@@ -241,7 +241,7 @@ class ListedTarget(Target):
     id: Annotated[int | str | None, BeforeValidator(_target_id)] = Field(
         None,
         description=f"the target's id, an integer within +-(2^63 - 1) or a text of 1 to {MAX_ID_CHARS} characters "
-        "without control characters, "
+        "without control or other non-printing characters, "
         "unique in the list (1 and '1' are the same id); null: its index in the list",
     )
 

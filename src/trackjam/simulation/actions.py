@@ -38,11 +38,13 @@ def checked_actions(actions, positions: np.ndarray, displacements: np.ndarray, n
 
 
 def _has_bool(given) -> bool:
-    """A True or False among the entries: numpy reads [True, 0, 0] as the integers [1, 0, 0]."""
+    """A True or False among the entries (a 0-d array of one too): numpy reads [True, 0, 0] as
+    the integers [1, 0, 0]."""
     if isinstance(given, np.ndarray):
         return given.dtype.kind == "b"
     try:
-        return any(isinstance(v, (bool, np.bool_)) for v in given)
+        return any(isinstance(v, (bool, np.bool_)) or (isinstance(v, np.ndarray) and v.dtype.kind == "b")
+                   for v in given)
     except TypeError:
         return False
 

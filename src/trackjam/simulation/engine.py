@@ -250,7 +250,7 @@ class Simulation:
 
     def result(self) -> RunResult:
         """The logs so far, as column arrays, and their summary."""
-        if self.t == 0:  # the summary of no step was a KeyError from inside it
+        if not self.log.steps:  # no step logged (none run, or the first interrupted): a KeyError from the summary
             raise RuntimeError("result() before the first step: call step() first")
         c = self.c
         steps, agents, meas = self.log.columns()

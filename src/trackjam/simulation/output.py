@@ -5,9 +5,11 @@ folder that holds anything but an earlier run of the very same resolved scenario
 so nothing of the user's is overwritten. The run's files are written into a hidden staging
 folder inside it and moved into place together at the end, with Ctrl-C and SIGTERM held back
 for those few renames: a write that is interrupted or fails (a full disk) leaves the folder as
-it was, an earlier run's files whole and none of the new ones, and a folder the write made is
-removed again. What a SIGKILL leaves behind (the hidden staging folder, or a temporary file of
-an earlier version) is ours, ignored by the check and removed by the next write.
+it was, an earlier run's files whole and none of the new ones, and the folders the write made
+are removed again. Only a SIGKILL during the renames, or a rename the file system refuses
+(said in the one line), can leave some files new and others old. What a SIGKILL leaves behind
+(the hidden staging folder, or a temporary file of an earlier version) is ours, ignored by the
+check and removed by the next write.
 """
 
 from __future__ import annotations
@@ -81,6 +83,7 @@ def _leftover(p: Path) -> bool:
 
 
 def _remove_leftovers(out: Path) -> None:
+    """Remove what killed writes left in ``out`` (:func:`_leftover`)."""
     for p in out.iterdir():
         if not _leftover(p):
             continue
@@ -93,47 +96,74 @@ def _remove_leftovers(out: Path) -> None:
 @contextmanager
 def _signals_held():
     """Hold Ctrl-C and SIGTERM back while the staged files are renamed into place, so that a
-    folder is never left half old and half new; a signal that came meanwhile acts right after.
+    folder is not left half old and half new; a signal that came meanwhile acts right after
+    (SIGTERM first when both came: one exception can end the command). If the block fails, its
+    error is what is raised, and a held Ctrl-C is dropped: the command ends with that error.
 
     Python runs its signal handlers in the main thread; there the handlers are swapped for one
     that only notes the signal (masking the signal would not do: another thread of the process,
-    numba's or BLAS's, may receive it). Elsewhere no Ctrl-C can land in this code."""
+    numba's or BLAS's, may receive it). Elsewhere no Ctrl-C can land in this code. A handler
+    set from C (``getsignal`` says None) is left alone, as it could not be put back. Each
+    handler is put back even when a signal lands between two of the swaps."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     caught: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous: dict[int, object] = {}
+
+    def note(signum, frame):
+        caught.append(signum)
+
     try:
+        for s in (signal.SIGTERM, signal.SIGINT):
+            if signal.getsignal(s) is not None:
+                previous[s] = signal.signal(s, note)
         yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, signal.SIG_DFL if handler is None else handler)
-        for s in dict.fromkeys(caught):
+    except BaseException:
+        _put_back(previous)
+        raise
+    _put_back(previous)
+    for s in (signal.SIGTERM, signal.SIGINT):
+        if s in caught:
             signal.raise_signal(s)
 
 
-def _made_by(out: Path) -> Path | None:
-    """The highest folder that ``out.mkdir(parents=True)`` is about to make, or None if ``out`` exists."""
-    top = None
-    p = out.absolute()
-    while not p.exists():
-        top, p = p, p.parent
-    return top
-
-
-def _unmake(out: Path, top: Path | None) -> None:
-    """Remove the folders from ``out`` up to ``top`` that the write made, if they are still empty."""
-    if top is None:
+def _put_back(previous: dict) -> None:
+    """Restore the handlers ``previous`` holds, each one even if a signal lands between them."""
+    if not previous:
         return
-    p = out.absolute()
-    while True:
+    s, handler = previous.popitem()
+    try:
+        signal.signal(s, handler)
+    finally:
+        _put_back(previous)
+
+
+def _make_folder(out: Path) -> list[Path]:
+    """``mkdir -p out``, returning the folders it made, outermost first: exactly those, so that
+    a failed write removes no folder that was there before (a path through ``..`` names some
+    twice: ``new/../old/run`` makes ``new`` and ``old/run``)."""
+    chain = [out, *out.parents]
+    k = next(i for i, p in enumerate(chain) if p.is_dir())  # the current folder at worst
+    made = []
+    for p in reversed(chain[:k]):
+        try:
+            os.mkdir(p)
+        except FileExistsError:
+            if not p.is_dir():
+                raise
+            continue
+        made.append(p)
+    return made
+
+
+def _unmake(made: list[Path]) -> None:
+    """Remove the folders a failed write made, innermost first, those still empty."""
+    for p in reversed(made):
         try:
             p.rmdir()
         except OSError:
-            return
-        if p == top:
-            return
-        p = p.parent
+            pass
 
 
 def write_run(result, out: Path, figures: bool = True) -> list[Path]:
@@ -147,18 +177,20 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         raise TypeError(f"write_run: result must be what trackjam.simulate returns, got {type(result).__name__}")
     if not isinstance(out, (str, os.PathLike)) or not str(out):
         raise TypeError(f"write_run: out must be a folder's path, got {type(out).__name__} {out!r:.60}")
+    if not isinstance(os.fspath(out), str):  # a path-like of bytes
+        raise TypeError(f"write_run: out must be a folder's path as text, got {type(out).__name__} {out!r:.60}")
     if "\x00" in os.fspath(out):  # os's "embedded null byte", from deep in pathlib
         raise ValueError(f"write_run: out holds a NUL character, which no path may: {out!r:.60}")
     if not isinstance(figures, bool):
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)
     check_out_dir(out, result.scenario)
-    top = _made_by(out)
+    made: list[Path] = []
     stage = None
     names: list[str] = []
     try:
         try:
-            out.mkdir(parents=True, exist_ok=True)
+            made = _make_folder(out)
         except OSError as err:
             raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
         _remove_leftovers(out)
@@ -196,14 +228,14 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
             for k, name in enumerate(names):  # summary.json last
                 try:
                     os.replace(stage / name, out / name)
-                except OSError as err:  # the check refused a folder at these names; a race is left
+                except OSError as err:  # a name taken since the check (a folder), a file system's refusal
                     raise OutputError(
                         f"{out / name}: cannot be replaced ({err.strerror or err}); "
                         f"{k} of the run's {len(names)} files were moved into {out} before it") from None
+            shutil.rmtree(stage, ignore_errors=True)
     except BaseException:
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
-        _unmake(out, top)
+        _unmake(made)
         raise
-    shutil.rmtree(stage, ignore_errors=True)
     return [out / name for name in names]

@@ -363,7 +363,7 @@ class SwarmSimulation:
 
     def result(self) -> SwarmResult:
         """The logs so far, as column arrays, and their summary."""
-        if self.t == 0:  # the summary of no step was a KeyError from inside it
+        if not self.log.rows["steps"]:  # no step logged (none run, or the first interrupted): a KeyError from the summary
             raise RuntimeError("result() before the first step: call step() first")
         b = self.c.base
         tables = self.log.columns()
