@@ -17,6 +17,7 @@ import numpy as np
 from trackjam.control.exact import solve_exact
 from trackjam.control.fallback import fallback_levels
 from trackjam.control.grasp import solve_grasp
+from trackjam.arguments import real, whole
 from trackjam.control.greedy import solve_greedy
 from trackjam.control.problem import Problem, Solution, build_problem
 
@@ -33,6 +34,17 @@ class SolverOptions:
     threads: int = 1  # GRASP: agents' searches side by side (same result)
     time_limit_s: float | None = 1.0  # exact: budget of the search [s]; None: none
     node_limit: int = 0  # exact: budget in search nodes; 0: none
+
+    def __post_init__(self) -> None:
+        # the configuration's bounds (trackjam.config): a caller of solve() met none, and
+        # samples=10**12 ran GRASP's compiled loop, which no Ctrl-C stops, for hours
+        whole("samples", self.samples, 1, 100_000_000)
+        whole("iterations", self.iterations, 1, 1_000_000)
+        whole("neighbours", self.neighbours, 2, 1000)
+        whole("threads", self.threads, 1, 1024)
+        if self.time_limit_s is not None:
+            real("time_limit_s", self.time_limit_s, 0.0, 3600.0, above=True)
+        whole("node_limit", self.node_limit, 0, 10**12)
 
 
 Solver = Callable[[Problem, Sequence[np.random.Generator], SolverOptions], Solution]

@@ -50,6 +50,7 @@ from typing import Sequence
 import numpy as np
 from scipy.special import expit
 
+from trackjam.arguments import real, vector, whole
 from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
@@ -320,6 +321,42 @@ class FilterParams:
     reserve_memory: int = 0  # filter.reserve_memory: scans before the current one whose support keeps a reserved slot
     velocity_jitter: float = 0.0  # filter.velocity_jitter [m/s]: the reserve's extra copies get N(0, this^2) per velocity axis; 0: plain copies
     visibility_per_particle: bool = False  # filter.visibility.per_particle: each particle carries its own P(visible)
+
+    def __post_init__(self) -> None:
+        # the configuration's bounds (trackjam.config); built by hand, a noise_std of one entry
+        # was read past its end by the update kernel, a NaN became an existence of 0, and
+        # walls="bounce" behaved as "none"
+        real("birth_prob", self.birth_prob, 0.0, 1.0)
+        real("survival_prob", self.survival_prob, 0.0, 1.0)
+        whole("particles", self.particles, 10, 10_000_000)
+        whole("birth_particles", self.birth_particles, 1, 10_000_000)
+        if self.birth not in ("uniform", "measurement", "mixed"):
+            raise ValueError(f"birth: expected 'uniform', 'measurement' or 'mixed', got {self.birth!r:.40}")
+        real("birth_mix", self.birth_mix, 0.0, 1.0)
+        real("measurement_birth_speed", self.measurement_birth_speed, 0.0)
+        real("birth_speed", self.birth_speed, 0.0)
+        real("accel_var", self.accel_var, 0.0)
+        if self.walls not in ("reflect", "none"):
+            raise ValueError(f"walls: expected 'reflect' or 'none', got {self.walls!r:.40}")
+        low, high = vector("low", self.low), vector("high", self.high)
+        if np.any(low >= high):
+            raise ValueError(f"low, high: the area's low corner must lie below its high one, got {low.tolist()} and "
+                             f"{high.tolist()}")
+        if np.any(vector("noise_std", self.noise_std) <= 0.0):
+            raise ValueError(f"noise_std: the standard deviations must be > 0, got {np.asarray(self.noise_std).tolist()}")
+        real("clutter_rate", self.clutter_rate, 0.0, 1000.0)
+        if self.visibility is not None:
+            if len(self.visibility) != 2:
+                raise ValueError(f"visibility: expected (hide, reappear), got {self.visibility!r:.40}")
+            real("visibility hide", self.visibility[0], 0.0, 1.0)
+            real("visibility reappear", self.visibility[1], 0.0, 1.0)
+        if self.mode is not None:
+            if len(self.mode) != 2:
+                raise ValueError(f"mode: expected (radius, mass), got {self.mode!r:.40}")
+            real("mode radius", self.mode[0], 0.0, above=True)
+            real("mode mass", self.mode[1], 0.0, 1.0, above=True)
+        whole("reserve_memory", self.reserve_memory, 0, 10**6)
+        real("velocity_jitter", self.velocity_jitter, 0.0)
 
 
 class BernoulliFilter:

@@ -5,19 +5,25 @@ from __future__ import annotations
 
 import numpy as np
 
+from trackjam.arguments import real, vector
+
 
 def ospa(truth: np.ndarray | None, estimate: np.ndarray | None, c: float = 10.0, p: float = 2.0) -> float:
-    """OSPA(p, c) between ``{truth}`` and ``{estimate}`` (positions (3,) or None) [m].
+    """OSPA(p, c) between ``{truth}`` and ``{estimate}`` (positions (3,) or None; a longer state
+vector's first three entries) [m].
 
     Both empty: 0. Exactly one empty: c (the cardinality penalty). Both present:
     ``(min(|x - x_hat|, c)^p)^(1/p) = min(|x - x_hat|, c)``; the order p only matters for
     larger sets, and is accepted for the general definition's sake.
     """
-    if c <= 0 or p <= 0:
-        raise ValueError("OSPA needs c > 0 and p > 0")
-    if truth is None and estimate is None:
+    # an empty array is not the empty set here (None is): zeros((0, 3)) against a position gave 0
+    c = real("c", c, 0.0, above=True)
+    real("p", p, 0.0, above=True)
+    x = None if truth is None else vector("truth", truth, 3, at_least=True)
+    y = None if estimate is None else vector("estimate", estimate, 3, at_least=True)
+    if x is None and y is None:
         return 0.0
-    if truth is None or estimate is None:
-        return float(c)
-    d = float(np.linalg.norm(np.asarray(truth, dtype=float)[:3] - np.asarray(estimate, dtype=float)[:3]))
-    return min(d, float(c))
+    if x is None or y is None:
+        return c
+    d = float(np.linalg.norm(x[:3] - y[:3]))
+    return min(d, c)

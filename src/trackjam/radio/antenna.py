@@ -12,10 +12,13 @@ the numpy version.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from trackjam.arguments import real, vector
 
 
 
@@ -30,6 +33,19 @@ class AntennaModel:
     p_d_max: float  # p_D^max
     levels_w: np.ndarray  # L in watts, increasing; 0 is "off"
     delta_w: float  # interference tolerance delta [W]
+
+    def __post_init__(self) -> None:
+        # the configuration's bounds (trackjam.config); built by hand, an opening of 200 deg gave
+        # a negative range, levels of zero a NaN p_D, and a kernel read past a short level list
+        real("height", self.height, 0.0, above=True)
+        real("half_angle", self.half_angle, 0.0, math.radians(85.0), above=True)
+        real("r0", self.r0, 0.0, above=True)
+        real("n_e", self.n_e, 0.0, 10.0, above=True)
+        real("p_d_max", self.p_d_max, 0.0, 1.0)
+        levels = vector("levels_w", self.levels_w, 2, at_least=True)
+        if levels[0] != 0.0 or np.any(np.diff(levels) <= 0.0):
+            raise ValueError(f"levels_w: must start at 0 (off) and increase, got {levels.tolist()!r:.60}")
+        real("delta_w", self.delta_w, 0.0, above=True)
 
     @property
     def l_max(self) -> float:

@@ -11,9 +11,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from trackjam.arguments import vector, whole
+
 
 def displacement_set(radial_steps, n_inclination: int, n_azimuth: int) -> np.ndarray:
     """The admissible displacements, shape (K, 3), hover first, then in Eq. (3)'s loop order."""
+    # the configuration's bounds: 10**6 directions ran for minutes, NaN steps gave NaN moves
+    n_inclination = whole("n_inclination", n_inclination, 1, 360)
+    n_azimuth = whole("n_azimuth", n_azimuth, 1, 360)
+    steps = vector("radial_steps", radial_steps, None)
+    if steps.size == 0 or np.any(steps <= 0) or np.any(steps > 1e4) or steps.size > 32:
+        raise ValueError(f"radial_steps: expected 1 to 32 step lengths in (0, 10000] m, got {steps.tolist()!r:.60}")
+    if any(isinstance(r, (bool, np.bool_)) for r in np.ravel(np.asarray(radial_steps, dtype=object))):
+        raise TypeError("radial_steps: expected step lengths in metres, got a bool among them")
+    radial_steps = steps.tolist()
     out = [np.zeros(3)]
     seen = {(0.0, 0.0, 0.0)}
     for r in radial_steps:
