@@ -119,3 +119,18 @@ def test_a_planned_action_names_a_solver_by_text():
 
     with pytest.raises(TypeError, match=r"^Planned: solver must be a solver's name \(greedy, grasp, exact\), got list"):
         Planned(["exact"])
+
+
+def test_the_policies_and_rollout_refuse_what_is_not_an_environment_of_ours():
+    # None failed at the first step with an AttributeError; a list of solvers was "unhashable type"
+    import trackjam
+    from trackjam.env import parallel_env, random_policy, rollout, solver_policy
+
+    for call in (lambda: random_policy(None), lambda: solver_policy(None, "greedy"),
+                 lambda: rollout(None, lambda obs: {}, [1])):
+        with pytest.raises(TypeError, match=r"^(random_policy|solver_policy|rollout): env must be trackjam\.env"):
+            call()
+    env = parallel_env(trackjam.load_scenario("paper-fig3", ["steps=1"]))
+    with pytest.raises(ValueError, match=r"^solver_policy: unknown solver \['exact'\]"):
+        solver_policy(env, ["exact"])
+    assert callable(solver_policy(env, "exact")) and callable(random_policy(env))

@@ -24,8 +24,9 @@ RANDOM_POLICY_WORD = 1
 def solver_policy(env: TrackjamParallelEnv, solver: str) -> Policy:
     """The team's plan by ``solver`` (one of greedy, grasp, exact), decided by the engine inside
     the step: the run is the one :func:`trackjam.simulate` gives with that solver and seed."""
-    if solver not in SOLVERS:
-        raise ValueError(f"solver_policy: unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")
+    _check_env(env, "solver_policy")
+    if not isinstance(solver, str) or solver not in SOLVERS:  # a list was "unhashable type"
+        raise ValueError(f"solver_policy: unknown solver {solver!r:.40}; choose from {', '.join(SOLVERS)}")
     action = Planned(solver)
 
     def policy(obs: dict) -> dict:
@@ -59,7 +60,14 @@ def _seed(seed, where: str) -> int:
 
 
 def random_policy(env: TrackjamParallelEnv, seed: int = 0) -> RandomPolicy:
+    _check_env(env, "random_policy")
     return RandomPolicy(env, seed)
+
+
+def _check_env(env, who: str) -> None:
+    """``env`` is one of ours (None failed later, at the first step, with an AttributeError)."""
+    if not isinstance(env, TrackjamParallelEnv):
+        raise TypeError(f"{who}: env must be trackjam.env.parallel_env(...)'s environment, got {type(env).__name__}")
 
 
 def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
@@ -68,6 +76,7 @@ def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
     with ``policy`` (its name), ``return`` (the summed shared reward), its two parts ``xi`` (summed
     Xi at the truth) and ``penalty`` (summed jam penalty), ``steps`` and ``end``.
     A policy with a ``reset(seed)`` method is reset at the start of each episode."""
+    _check_env(env, "rollout")
     if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Iterable):
         raise ValueError(f"rollout: seeds must be an iterable of integers >= 0 (one episode each), got {seeds!r}")
     # every argument checked before the first episode: a bad last seed, a policy or a progress that
