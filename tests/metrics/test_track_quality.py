@@ -222,3 +222,20 @@ def test_the_cli_refuses_a_gate_that_is_not_positive_in_one_line(value):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     lines = [l for l in r.stderr.splitlines() if l.strip()]
     assert len(lines) == 1 and "metrics.gate" in lines[0]
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda c: c.update(target_detectable=c["target_detectable"][:, None]), "one-dimensional and of one length"),
+    (lambda c: c.update(existence=c["existence"][:1]), "existence (1,) beside target_detectable (5,)"),
+    (lambda c: c.update(target_detectable=np.array(["False"] * 5)), "target_detectable must hold booleans"),
+    (lambda c: c.update(target_detectable=np.full(5, 0.4)), "target_detectable must hold booleans"),
+    (lambda c: c.pop("est_z"), "missing the column(s) est_z"),
+])
+def test_columns_that_are_no_steps_log_are_refused(change, words):
+    # a (5, 1) column was broadcast into 25 held steps of 5 (a share of 5.0); "False" counted as detectable
+    cols = log([True] * 5, [(1, 0, 0)] * 5, [0.9] * 5)
+    change(cols)
+    for f in (track_quality, step_classes):
+        with pytest.raises(ValueError, match=r"^steps: ") as err:
+            f(cols)
+        assert words in str(err.value)

@@ -28,10 +28,32 @@ def _xyz(steps: Mapping[str, np.ndarray], prefix: str) -> np.ndarray:
     return np.stack([np.asarray(steps[f"{prefix}_{a}"], dtype=float) for a in "xyz"], axis=-1)
 
 
+COLUMNS = ("target_detectable", "existence", *(f"{p}_{a}" for p in ("truth", "est") for a in "xyz"))
+
+
+def _columns(steps: Mapping[str, np.ndarray]) -> int:
+    """The number of steps, once every column this module reads is there, one-dimensional and of
+    one length, and ``target_detectable`` holds booleans: a (5, 1) column was broadcast into 25
+    "held" steps of 5, and the text "False" counted as detectable."""
+    missing = [c for c in COLUMNS if c not in steps]
+    if missing:
+        raise ValueError(f"steps: missing the column(s) {', '.join(missing)} (a run's steps log has them)")
+    shapes = {c: np.shape(steps[c]) for c in COLUMNS}
+    if any(len(sh) != 1 for sh in shapes.values()) or len(set(shapes.values())) != 1:
+        raise ValueError(f"steps: the columns must be one-dimensional and of one length, got shapes "
+                         f"{', '.join(f'{c} {sh}' for c, sh in shapes.items() if sh != shapes['target_detectable'])} "
+                         f"beside target_detectable {shapes['target_detectable']}")
+    if np.asarray(steps["target_detectable"]).dtype.kind != "b":
+        raise ValueError(f"steps: target_detectable must hold booleans, got dtype "
+                         f"{np.asarray(steps['target_detectable']).dtype}")
+    return shapes["target_detectable"][0]
+
+
 def _parts(steps: Mapping[str, np.ndarray], gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(detectable, confirmed, within gate) per step."""
-    if not gate > 0:
+    if isinstance(gate, (bool, np.bool_)) or not gate > 0:
         raise ValueError(f"the gate must be > 0 m, got {gate}")
+    _columns(steps)
     detectable = np.asarray(steps["target_detectable"], dtype=bool)
     truth, est = _xyz(steps, "truth"), _xyz(steps, "est")
     if np.any(detectable & ~np.isfinite(truth).all(axis=1)):
