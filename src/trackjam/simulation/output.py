@@ -166,20 +166,55 @@ def _unmake(made: list[Path]) -> None:
             pass
 
 
+def _stage(result, stage: Path, out: Path, figures: bool) -> list[str]:
+    """Write the run's files into the staging folder ``stage``; return their names, in the order
+    they are to be moved into ``out`` (``summary.json`` last). A file that cannot be written is
+    one :class:`OutputError` naming it in ``out``, where nothing has changed yet."""
+    from trackjam.simulation.logs import write_parquet
+
+    names: list[str] = []
+
+    def put(name: str, write: Callable[[Path], None]) -> None:
+        try:
+            write(stage / name)
+        except OSError as err:
+            raise OutputError(f"{out / name}: cannot be written ({err.strerror or err}); "
+                              f"nothing in {out} was changed") from None
+        names.append(name)
+
+    put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
+    tables = getattr(result, "tables", None) or {
+        "steps": result.steps, "agents": result.agents, "measurements": result.measurements}
+    for name, columns in tables.items():
+        put(f"{name}.parquet", lambda p, columns=columns: write_parquet(columns, p))
+    if figures and "tracks" in tables:
+        from trackjam.viz.swarm import plot_swarm
+
+        put("run.png", lambda p: plot_swarm(tables, figure_settings(result.scenario), p))
+    elif figures:
+        from trackjam.viz.figure import plot_run
+        from trackjam.viz.replay import write_replay
+
+        fs = figure_settings(result.scenario)
+        put("run.png", lambda p: plot_run(result.steps, result.agents, fs, p))
+        put("replay.html", lambda p: write_replay(result.steps, result.agents, fs, p))
+    put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
+    return names
+
+
 def write_run(result, out: Path, figures: bool = True) -> list[Path]:
     """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``, whole or not at all (the
     module docstring); return the files."""
-    from trackjam.simulation.logs import write_parquet
-
     # checked before anything is written: a text result was an AttributeError, None or 5 pathlib's
     # TypeError, "" the current folder, and figures="no" drew the figures
     if not hasattr(result, "scenario") or not (hasattr(result, "steps") or hasattr(result, "tables")):
         raise TypeError(f"write_run: result must be what trackjam.simulate returns, got {type(result).__name__}")
     if not isinstance(out, (str, os.PathLike)) or not str(out):
         raise TypeError(f"write_run: out must be a folder's path, got {type(out).__name__} {out!r:.60}")
-    if not isinstance(os.fspath(out), str):  # a path-like of bytes
+    path = os.fspath(out)
+    if not isinstance(path, str):  # a path-like of bytes
         raise TypeError(f"write_run: out must be a folder's path as text, got {type(out).__name__} {out!r:.60}")
-    if "\x00" in os.fspath(out):  # os's "embedded null byte", from deep in pathlib
+    if "\x00" in path:  # os's "embedded null byte", from deep in pathlib
         raise ValueError(f"write_run: out holds a NUL character, which no path may: {out!r:.60}")
     if not isinstance(figures, bool):
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
@@ -187,7 +222,6 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
     check_out_dir(out, result.scenario)
     made: list[Path] = []
     stage = None
-    names: list[str] = []
     try:
         try:
             made = _make_folder(out)
@@ -198,32 +232,7 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
             stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
         except OSError as err:
             raise OutputError(f"--out {out}: cannot write in the folder ({err.strerror or err})") from None
-
-        def put(name: str, write: Callable[[Path], None]) -> None:
-            try:
-                write(stage / name)
-            except OSError as err:
-                raise OutputError(f"{out / name}: cannot be written ({err.strerror or err}); "
-                                  f"nothing in {out} was changed") from None
-            names.append(name)
-
-        put("scenario.yaml", lambda p: p.write_text(scenario_text(result.scenario)))
-        tables = getattr(result, "tables", None) or {
-            "steps": result.steps, "agents": result.agents, "measurements": result.measurements}
-        for name, columns in tables.items():
-            put(f"{name}.parquet", lambda p, columns=columns: write_parquet(columns, p))
-        if figures and "tracks" in tables:
-            from trackjam.viz.swarm import plot_swarm
-
-            put("run.png", lambda p: plot_swarm(tables, figure_settings(result.scenario), p))
-        elif figures:
-            from trackjam.viz.figure import plot_run
-            from trackjam.viz.replay import write_replay
-
-            fs = figure_settings(result.scenario)
-            put("run.png", lambda p: plot_run(result.steps, result.agents, fs, p))
-            put("replay.html", lambda p: write_replay(result.steps, result.agents, fs, p))
-        put("summary.json", lambda p: p.write_text(json.dumps(result.summary, indent=2) + "\n"))
+        names = _stage(result, stage, out, figures)
         with _signals_held():
             for k, name in enumerate(names):  # summary.json last
                 try:
