@@ -47,3 +47,59 @@ def vector(name: str, value, size: int | None = 3, *, at_least: bool = False) ->
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name}: must be finite, got {a.tolist()!r:.60}")
     return a
+
+
+def _array(name: str, value) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: expected numbers, got {type(value).__name__} {value!r:.40}") from None
+    return a
+
+
+def points(name: str, value, sizes: tuple[int, ...] = (3,), *, ndim: int | None = None) -> np.ndarray:
+    """``value`` as a finite float array whose last axis holds one of ``sizes`` entries (a
+    position: 3; a position or a state: (3, 6)), of ``ndim`` dimensions when given."""
+    a = _array(name, value)
+    if a.ndim == 0 or a.shape[-1] not in sizes or (ndim is not None and a.ndim != ndim):
+        last = " or ".join(str(s) for s in sizes)
+        rows = {1: "a vector", 2: "rows"}.get(ndim, "an array")
+        raise ValueError(f"{name}: expected {rows} of {last} entries (one per coordinate on the last axis), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: must be finite, got {'NaN' if np.any(np.isnan(a)) else 'an infinite value'}")
+    return a
+
+
+def amounts(name: str, value, low: float = 0.0, high: float = math.inf) -> np.ndarray:
+    """``value`` as a float array (any shape) of finite numbers in [low, high]."""
+    a = _array(name, value)
+    bad = ~np.isfinite(a) | (a < low) | (a > high)
+    if np.any(bad):
+        raise ValueError(f"{name}: must be finite numbers in [{low:g}, {high:g}], got {a[bad].ravel()[0]!r}")
+    return a
+
+
+def together(**shapes: tuple[int, ...]) -> tuple[int, ...]:
+    """The shape the named shapes broadcast to; a ValueError naming them when they do not."""
+    try:
+        return np.broadcast_shapes(*shapes.values())
+    except ValueError:
+        listed = ", ".join(f"{k} {v}" for k, v in shapes.items())
+        raise ValueError(f"{', '.join(shapes)}: shapes do not broadcast together: {listed}") from None
+
+
+def covariance(name: str, value, size: int) -> np.ndarray:
+    """``value`` as a finite, symmetric, positive semi-definite (size, size) matrix (eigenvalues
+    down to -1e-9 of the largest are rounding)."""
+    C = _array(name, value)
+    if C.shape != (size, size):
+        raise ValueError(f"{name}: expected a ({size}, {size}) matrix, got shape {C.shape}")
+    if not np.all(np.isfinite(C)):
+        raise ValueError(f"{name}: must be finite")
+    scale = float(np.max(np.abs(C))) if C.size else 0.0
+    if not np.allclose(C, C.T, rtol=1e-8, atol=1e-12 * max(scale, 1.0)):
+        raise ValueError(f"{name}: must be symmetric")
+    eig = np.linalg.eigvalsh(C)
+    if eig[0] < -1e-9 * max(scale, 1e-300):
+        raise ValueError(f"{name}: must be positive semi-definite, got an eigenvalue {eig[0]:.3g}")
+    return C

@@ -110,7 +110,7 @@ def test_at_the_default_distance_a_top_power_agent_detects_about_half_the_time()
 
 
 def test_bad_arguments_are_refused():
-    with pytest.raises(ValueError, match="d must be"):
+    with pytest.raises(ValueError, match="d: must be"):
         clairvoyant_ceiling(line([1.0]), [True], [[0.0, 0, 0]], 5.0, LOW, HIGH, d=0.0)
     with pytest.raises(ValueError, match="max_step"):
         chase(line([1.0]), [[0.0, 0, 0]], -1.0, LOW, HIGH)
@@ -214,7 +214,7 @@ def test_bad_team_arguments_are_refused():
     x = np.zeros((2, 1, 3))
     with pytest.raises(ValueError, match="max_step"):
         team_chase(x, [[0.0, 0, 0]], -1.0, LOW, HIGH)
-    with pytest.raises(ValueError, match="d must be"):
+    with pytest.raises(ValueError, match="d: must be"):
         team_ceiling(x, np.ones((2, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH, d=-1.0)
     with pytest.raises(ValueError, match=r"\(T, K, 3\)"):
         team_ceiling(np.zeros((2, 3)), np.ones((2, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH)

@@ -143,13 +143,13 @@ def test_with_a_delay_each_agent_fuses_its_teammates_late_posteriors_only_when_c
     import trackjam.simulation.team as team
 
     sizes = []
-    fuse = team.fuse
+    fuse = team.fuse_unchecked
 
     def spy(estimates, *args, **kwargs):
         sizes.append(len(estimates))
         return fuse(estimates, *args, **kwargs)
 
-    monkeypatch.setattr(team, "fuse", spy)
+    monkeypatch.setattr(team, "fuse_unchecked", spy)
     run("comms.delay_steps=1", f"comms.stale={stale}")
     # step 1: nothing has arrived yet; from step 2 on, each agent holds its own fresh posterior
     # and, when coasting, its two teammates' posteriors of the step before

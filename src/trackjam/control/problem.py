@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
+from trackjam.arguments import points, vector, whole
 from trackjam.radio.antenna import AntennaModel, axis_of, cone_gain, kernel_cone_gain
 from trackjam.world.moves import admissible_moves, in_area
 
@@ -174,15 +175,23 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
 
     ``samples`` (S, 3) and ``weights`` (S,) (None: uniform; normalised to sum 1) make the
     objective the belief average of Xi (module docstring); None keeps Eq. (12) at ``aim``.
-    Raises ``ValueError`` when an agent lies outside the area (hover must be admissible),
-    when ``at_least`` is not in 1..N, or on a bad sample or weight.
+    Raises ``ValueError`` (``TypeError`` for a wrong type) naming the argument when an agent
+    lies outside the area (hover must be admissible), when ``at_least`` is not in 1..N, on a
+    position, aim or displacement that is not finite with 3 coordinates, on corners not finite
+    with low < high, or on a bad sample or weight.
     """
-    u = np.atleast_2d(np.asarray(positions, dtype=np.float64))
-    x_bar = np.asarray(aim, dtype=np.float64).reshape(3)
-    D = np.asarray(displacements, dtype=np.float64)
+    if not isinstance(antenna, AntennaModel):
+        raise TypeError(f"antenna: expected an AntennaModel, got {type(antenna).__name__}")
+    u = np.atleast_2d(points("positions", positions))
+    if u.ndim != 2:
+        raise ValueError(f"positions: expected rows of 3 entries, got shape {u.shape}")
+    x_bar = points("aim", aim, ndim=1)
+    D = points("displacements", displacements, ndim=2)
+    lo, hi = vector("low", low), vector("high", high)
+    if np.any(lo >= hi):
+        raise ValueError(f"low, high: every entry of low must lie below high's, got {lo.tolist()} and {hi.tolist()}")
     N = u.shape[0]
-    if not 1 <= at_least <= N:
-        raise ValueError(f"at_least must be in 1..{N}, got {at_least}")
+    at_least = whole("at_least", at_least, 1, N)
     if not np.all(in_area(u, low, high)):
         raise ValueError("every agent must lie inside the area")
     if np.any(D[0] != 0.0):

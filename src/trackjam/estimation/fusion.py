@@ -11,11 +11,13 @@ with the weights ``omega`` on the simplex that minimise ``trace(C)``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
+from trackjam.arguments import covariance, real, vector
 from trackjam.estimation.bernoulli import Estimate, mix_visibility, posterior_visibility
 
 CONFIRM = 0.5  # an agent senses the target when e^j > 0.5 (Section V-A)
@@ -145,12 +147,71 @@ def fused_visible(predicted, log_evidence, visibility) -> tuple[float, float]:
     return float(1.0 / (1.0 + np.exp(-np.clip(log_odds, -700, 700)))), visible
 
 
+RULES = ("mean", "evidence")
+
+
 def fuse(estimates: list[Estimate], predicted: list[float] | None = None, rule: str = "mean",
          log_evidence: list[float] | None = None, visibility: list[float] | None = None) -> FusedEstimate:
     """The team's estimate: fused existence (:func:`fused_existence`), and the CI of the agents
     with e^j > 0.5. ``predicted`` holds the agents' e^j_{t|t-1}, needed by rule ``evidence``;
     with a hidden-target mode ``log_evidence`` and ``visibility`` hold each agent's log V_j and
-    predicted P(visible) (:func:`fused_visible`)."""
+    predicted P(visible) (:func:`fused_visible`).
+
+    Checks its arguments first (the README's pieces used alone): existences and probabilities
+    in [0, 1], means finite vectors of one length d, covariances finite, symmetric and positive
+    semi-definite (d, d), one entry per estimate in each list, a known rule. The engine, whose
+    estimates are built by the filters, calls :func:`fuse_unchecked`; both give the same result."""
+    _check_fuse(estimates, predicted, rule, log_evidence, visibility)
+    return fuse_unchecked(estimates, predicted, rule, log_evidence, visibility)
+
+
+def _check_fuse(estimates, predicted, rule, log_evidence, visibility) -> None:
+    if not isinstance(rule, str) or rule not in RULES:
+        raise ValueError(f"rule: must be one of {', '.join(RULES)}, got {rule!r:.40}")
+    try:
+        estimates = list(estimates)
+    except TypeError:
+        raise TypeError(f"estimates: expected a list of Estimate, got {type(estimates).__name__}") from None
+    if not estimates:
+        raise ValueError("estimates: fuse needs at least one estimate")
+    d = None
+    for j, est in enumerate(estimates):
+        if not all(hasattr(est, k) for k in ("existence", "mean", "cov")):
+            raise TypeError(f"estimates[{j}]: expected an Estimate (existence, mean, cov), got {type(est).__name__}")
+        real(f"estimates[{j}].existence", est.existence, 0.0, 1.0)
+        mean = vector(f"estimates[{j}].mean", est.mean, d)
+        if d is None:
+            d = len(mean)
+            if d == 0:
+                raise ValueError(f"estimates[{j}].mean: expected at least one entry, got none")
+        covariance(f"estimates[{j}].cov", est.cov, d)
+    n = len(estimates)
+    if rule == "evidence" and predicted is None:
+        raise ValueError("predicted: rule 'evidence' needs every agent's predicted existence")
+    for name, values, low, high in (("predicted", predicted, 0.0, 1.0), ("visibility", visibility, 0.0, 1.0),
+                                    ("log_evidence", log_evidence, -math.inf, math.inf)):
+        if values is None:
+            continue
+        a = vector(name, values, None) if name != "log_evidence" else _log_evidence(values)
+        if len(a) != n:
+            raise ValueError(f"{name}: expected one entry per estimate ({n}), got {len(a)}")
+        if np.any((a < low) | (a > high)):
+            raise ValueError(f"{name}: must lie in [{low:g}, {high:g}], got {a.tolist()!r:.60}")
+    if (log_evidence is None) != (visibility is None):
+        raise ValueError("log_evidence, visibility: give both (a hidden-target mode) or neither")
+
+
+def _log_evidence(values) -> np.ndarray:
+    """log V_j: numbers below +inf (-inf: a scan no particle could have made)."""
+    a = np.asarray(values, dtype=float) if not isinstance(values, str) else np.array([np.nan])
+    if a.ndim != 1 or np.any(np.isnan(a)) or np.any(a == np.inf):
+        raise ValueError(f"log_evidence: expected a vector of numbers below +inf, got {np.asarray(values).tolist()!r:.60}")
+    return a
+
+
+def fuse_unchecked(estimates: list[Estimate], predicted: list[float] | None = None, rule: str = "mean",
+                   log_evidence: list[float] | None = None, visibility: list[float] | None = None) -> FusedEstimate:
+    """:func:`fuse` without the checks of its arguments: the engine's, on the filters' estimates."""
     if not estimates:
         raise ValueError("fuse needs at least one estimate")
     visible = None

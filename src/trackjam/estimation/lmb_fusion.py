@@ -25,7 +25,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from trackjam.estimation.bernoulli import Estimate
-from trackjam.estimation.fusion import FusedEstimate, fuse
+from trackjam.estimation.fusion import FusedEstimate, fuse_unchecked
 from trackjam.estimation.lmb import TrackEstimate
 
 GATE = 16.27  # chi-square of 3 degrees of freedom at 0.999: same target beyond it is unlikely
@@ -93,7 +93,7 @@ def fuse_tracks(tracks: Sequence[Sequence[TrackEstimate]], predicted: Sequence[S
     fused = []
     for cluster in associate_tracks(tracks, gate):
         members = [tracks[a][i] for a, i in cluster]
-        est = fuse(
+        est = fuse_unchecked(
             [Estimate(t.existence, t.mean, t.cov) for t in members],
             None if predicted is None else [predicted[a][i] for a, i in cluster],
             rule,

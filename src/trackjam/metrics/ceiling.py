@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trackjam.arguments import points, real, vector
+
 # At 8 m the detection probability at the top power level is p_D^max (R_0 / 8)^n_e
 # = 0.95 (6/8)^2 = 0.53 (Eq. 9 with the paper's R_0 = 6 m, n_e = 2): a coin flip per agent.
 NEAR = 8.0
@@ -54,8 +56,11 @@ def clairvoyant_ceiling(
     (N, 3) the agents' positions at t = 0, ``max_step`` the largest radial step [m]
     (``max(agents.radial_steps)``), ``low``, ``high`` the area's corners, ``d`` [m]:
     :func:`team_ceiling` with one target."""
-    truth = np.asarray(truth, dtype=float).reshape(-1, 1, 3)
-    team = team_ceiling(truth, np.asarray(detectable, dtype=bool).reshape(-1, 1), initial, max_step, low, high, d)
+    truth = np.asarray(truth, dtype=float)
+    detectable = np.asarray(detectable)
+    if truth.ndim != 2 or truth.shape[1] != 3 or detectable.shape != truth.shape[:1]:
+        raise ValueError(f"truth, detectable: need truth (T, 3) and detectable (T,), got {truth.shape} and {detectable.shape}")
+    team = team_ceiling(truth.reshape(-1, 1, 3), detectable.reshape(-1, 1), initial, max_step, low, high, d)
     return Ceiling(share=team.shares[0], d=team.d, nearest=team.nearest[:, 0], positions=team.positions)
 
 
@@ -94,13 +99,14 @@ def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, hig
     most ``max_step`` [m] straight toward the true position of the target :func:`team_goals`
     gives them (``truth`` (T, K, 3), NaN rows while a target is absent; with none present they
     hover), clipped to the box [low, high]. :func:`chase` is its K = 1 case."""
-    if not max_step >= 0:
-        raise ValueError(f"max_step must be >= 0 m, got {max_step}")
+    max_step = real("max_step", max_step, 0.0)
     truth = np.asarray(truth, dtype=float)
     if truth.ndim != 3 or truth.shape[2] != 3:
         raise ValueError(f"truth must have shape (T, K, 3), got {truth.shape}")
-    u = np.array(initial, dtype=float).reshape(-1, 3)
-    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    u = np.array(points("initial", initial, ndim=2))
+    low, high = vector("low", low), vector("high", high)
+    if np.any(low >= high):
+        raise ValueError(f"low, high: every entry of low must lie below high's, got {low.tolist()} and {high.tolist()}")
     out = np.empty((len(truth), len(u), 3))
     for t, x in enumerate(truth):
         goals = team_goals(u, x)
@@ -134,14 +140,17 @@ def team_ceiling(truth: np.ndarray, detectable: np.ndarray, initial: np.ndarray,
     ``detectable`` (T, K) present and not occluded; the rest as :func:`clairvoyant_ceiling`, which
     is its K = 1 case. A reference, not a bound: sharing the chasers out otherwise can do better
     for one target at another's cost."""
-    if not d > 0:
-        raise ValueError(f"d must be > 0 m, got {d}")
+    d = real("d", d, 0.0, above=True)
     truth = np.asarray(truth, dtype=float)
-    detectable = np.asarray(detectable, dtype=bool)
+    detectable = np.asarray(detectable)
     if truth.ndim != 3 or truth.shape[2] != 3 or detectable.shape != truth.shape[:2]:
         raise ValueError(f"need truth (T, K, 3) and detectable (T, K), got {truth.shape} and {detectable.shape}")
+    if detectable.dtype != bool:
+        raise ValueError(f"detectable: expected booleans, got {detectable.dtype}")
     if np.any(detectable & ~np.isfinite(truth).all(axis=2)):
         raise ValueError("a detectable step has no true position")
+    if np.any(np.isinf(truth)) or np.any(np.isnan(truth).any(axis=2) != np.isnan(truth).all(axis=2)):
+        raise ValueError("truth: each row must be a finite position or all NaN (absent)")
     positions = team_chase(truth, initial, max_step, low, high)
     nearest = np.linalg.norm(positions[:, :, None, :] - truth[:, None, :, :], axis=3).min(axis=1)  # (T, K)
     close = detectable & (nearest <= d)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from trackjam.arguments import real, vector
+from trackjam.arguments import amounts, points, real, together, vector
 
 
 
@@ -104,14 +104,35 @@ def cone_gain(p, apex, aim, ant: AntennaModel) -> np.ndarray:
     return np.where(inside, path_gain(eta, ant.r0, ant.n_e), 0.0)
 
 
+def _antenna(ant) -> AntennaModel:
+    if not isinstance(ant, AntennaModel):
+        raise TypeError(f"ant: expected an AntennaModel, got {type(ant).__name__}")
+    return ant
+
+
+def _beam(x, u, aim, level_w, ant, level_max: float = math.inf):
+    """The arguments of Eqs. (9)-(10) checked (the README's pieces used alone): positions
+    ``x``, ``u`` and ``aim`` finite with 3 coordinates on the last axis, levels finite in
+    [0, level_max], all of shapes that broadcast together. Checking costs microseconds; it
+    changes no value."""
+    _antenna(ant)
+    x, u, aim = points("x", x), points("u", u), points("aim", aim)
+    level_w = amounts("level_w", level_w, 0.0, level_max)
+    together(x=x.shape[:-1], u=u.shape[:-1], aim=aim.shape[:-1], level_w=level_w.shape)
+    return x, u, aim, level_w
+
+
 def detection_probability(x, u, aim, level_w, ant: AntennaModel) -> np.ndarray:
-    """Eq. (9): p_D(x, u, l) = (l / l_max) p_D^max g(eta) inside the cone, 0 outside."""
-    return np.asarray(level_w, dtype=float) / ant.l_max * ant.p_d_max * cone_gain(x, u, aim, ant)
+    """Eq. (9): p_D(x, u, l) = (l / l_max) p_D^max g(eta) inside the cone, 0 outside; a level
+    in [0, l_max]."""
+    x, u, aim, level_w = _beam(x, u, aim, level_w, ant, _antenna(ant).l_max)
+    return level_w / ant.l_max * ant.p_d_max * cone_gain(x, u, aim, ant)
 
 
 def received_power(x, u, aim, level_w, ant: AntennaModel) -> np.ndarray:
-    """Eq. (10): power received at ``x`` from a sender at ``u`` aimed at ``aim`` [W]."""
-    return np.asarray(level_w, dtype=float) * cone_gain(x, u, aim, ant)
+    """Eq. (10): power received at ``x`` from a sender at ``u`` aimed at ``aim`` [W]; any level >= 0."""
+    x, u, aim, level_w = _beam(x, u, aim, level_w, ant)
+    return level_w * cone_gain(x, u, aim, ant)
 
 
 def interference_matrix(positions, aims, levels_w, ant: AntennaModel) -> np.ndarray:
@@ -119,12 +140,16 @@ def interference_matrix(positions, aims, levels_w, ant: AntennaModel) -> np.ndar
 
     Agent ``i`` is jammed when ``R[i].sum() >= delta`` (docs/model.md).
     """
-    u = np.asarray(positions, dtype=float)
-    a = np.asarray(aims, dtype=float)
-    lv = np.asarray(levels_w, dtype=float)
+    _antenna(ant)
+    u = points("positions", positions, ndim=2)
     n = u.shape[0]
+    a = points("aims", aims, ndim=2)
+    lv = amounts("levels_w", levels_w)
+    if a.shape != u.shape or lv.shape != (n,):
+        raise ValueError(f"positions, aims, levels_w: expected shapes ({n}, 3), ({n}, 3) and ({n},), "
+                         f"got {u.shape}, {a.shape} and {lv.shape}")
     # receivers on axis 0, senders on axis 1
-    R = received_power(u[:, None, :], u[None, :, :], a[None, :, :], lv[None, :], ant)
+    R = lv[None, :] * cone_gain(u[:, None, :], u[None, :, :], a[None, :, :], ant)
     R[np.arange(n), np.arange(n)] = 0.0
     return R
 

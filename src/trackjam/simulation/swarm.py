@@ -43,7 +43,7 @@ import numpy as np
 from trackjam.control.assignment import SolverOptions, build_assignment, solve_assignment
 from trackjam.control.fallback import fallback_levels
 from trackjam.estimation.bernoulli import Estimate, Scan
-from trackjam.estimation.fusion import CONFIRM, fuse
+from trackjam.estimation.fusion import CONFIRM, fuse_unchecked
 from trackjam.estimation.lmb import LMBFilter, Track, TrackEstimate
 from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks
 from trackjam.metrics.multi import gated_assignment, ospa_parts
@@ -145,7 +145,7 @@ def informed_fusion(team: list[FusedTrack], own: list[list[TrackEstimate]],
         index = member_indices(f, own)
         told = [(a, i) for a, i in index if informed[a][i]]
         if told and len(told) < len(index):
-            est = fuse([Estimate(own[a][i].existence, own[a][i].mean, own[a][i].cov) for a, i in told])
+            est = fuse_unchecked([Estimate(own[a][i].existence, own[a][i].mean, own[a][i].cov) for a, i in told])
             f = FusedTrack(f.members, est)
         out.append(f)
     return out

@@ -36,7 +36,7 @@ from trackjam.control.planning import PlanSettings, pooled_belief, wide_belief
 from trackjam.control.pursuit import AimSettings, pursuit_aim, search_aim
 from trackjam.control.problem import build_problem
 from trackjam.estimation.bernoulli import Estimate, Scan
-from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse
+from trackjam.estimation.fusion import CONFIRM, FusedEstimate, fuse_unchecked
 from trackjam.radio.antenna import AntennaModel
 from trackjam.simulation.agent import Agent, Message
 from trackjam.world.motion import cv_coast
@@ -286,7 +286,7 @@ class Team:
             key = tuple(id(m) for m in box)
             if key not in fused_by_inbox:
                 hidden = box and box[0].visibility is not None
-                fused_by_inbox[key] = fuse([m.estimate for m in box], predicted=[m.prior_existence for m in box],
+                fused_by_inbox[key] = fuse_unchecked([m.estimate for m in box], predicted=[m.prior_existence for m in box],
                                            rule=s.existence_rule,
                                            log_evidence=[m.log_evidence for m in box] if hidden else None,
                                            visibility=[m.visibility for m in box] if hidden else None)
