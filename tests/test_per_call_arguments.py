@@ -183,7 +183,7 @@ POS = np.array([[10.0, 10, 10], [20, 20, 20], [30, 30, 30]])
     ({"aim": [50.0, 50.0]}, ValueError, "aim: expected a vector of 3 entries"),
     ({"positions": np.ones((3, 2))}, ValueError, "positions: expected an array of 3 entries"),
     ({"displacements": D[:, :2]}, ValueError, "displacements: expected rows of 3 entries"),
-    ({"low": HIGH, "high": LOW}, ValueError, "low, high: every entry of low must lie below high's"),
+    ({"low": HIGH, "high": LOW}, ValueError, "low, high: the area's low corner must lie below its high one"),
     ({"high": [100.0, 100.0, np.inf]}, ValueError, "high: must be finite"),
     ({"at_least": True}, TypeError, "at_least: expected a whole number in [1, 3], got bool"),
     ({"at_least": 4}, ValueError, "at_least: must lie in [1, 3], got 4"),
@@ -215,7 +215,7 @@ def test_clairvoyant_ceiling_refuses_what_is_not_a_truth(args, error, words):
     ([0.0, 0, 0, 1, 1, 1], 5.0, LOW, HIGH, "initial: expected rows of 3 entries"),  # read as two agents before
     ([[np.nan, 0, 0]], 5.0, LOW, HIGH, "initial: must be finite"),
     ([[0.0, 0, 0]], np.nan, LOW, HIGH, "max_step: must be a finite number in [0, inf]"),
-    ([[0.0, 0, 0]], 5.0, HIGH, LOW, "low, high: every entry of low must lie below high's"),
+    ([[0.0, 0, 0]], 5.0, HIGH, LOW, "low, high: the area's low corner must lie below its high one"),
     ([[0.0, 0, 0]], 5.0, LOW, [1.0, 1.0], "high: expected a vector of 3 entries"),
 ])
 def test_the_chase_refuses_bad_agents_steps_and_areas(initial, step, low, high, words):

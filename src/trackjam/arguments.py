@@ -49,6 +49,14 @@ def vector(name: str, value, size: int | None = 3, *, at_least: bool = False) ->
     return a
 
 
+def corners(low, high) -> tuple[np.ndarray, np.ndarray]:
+    """An area's corners ``low`` and ``high``: finite 3-vectors, low below high on every axis."""
+    lo, hi = vector("low", low), vector("high", high)
+    if np.any(lo >= hi):
+        raise ValueError(f"low, high: the area's low corner must lie below its high one, got {lo.tolist()} and {hi.tolist()}")
+    return lo, hi
+
+
 def _array(name: str, value) -> np.ndarray:
     try:
         a = np.asarray(value, dtype=float)

@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
-from trackjam.arguments import points, vector, whole
+from trackjam.arguments import corners, points, whole
 from trackjam.radio.antenna import AntennaModel, axis_of, cone_gain, kernel_cone_gain
 from trackjam.world.moves import admissible_moves, in_area
 
@@ -187,9 +187,7 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
         raise ValueError(f"positions: expected rows of 3 entries, got shape {u.shape}")
     x_bar = points("aim", aim, ndim=1)
     D = points("displacements", displacements, ndim=2)
-    lo, hi = vector("low", low), vector("high", high)
-    if np.any(lo >= hi):
-        raise ValueError(f"low, high: every entry of low must lie below high's, got {lo.tolist()} and {hi.tolist()}")
+    corners(low, high)
     N = u.shape[0]
     at_least = whole("at_least", at_least, 1, N)
     if not np.all(in_area(u, low, high)):

@@ -50,7 +50,7 @@ from typing import Sequence
 import numpy as np
 from scipy.special import expit
 
-from trackjam.arguments import real, vector, whole
+from trackjam.arguments import corners, real, vector, whole
 from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
 from trackjam.estimation.birth import (
     YOUNG_FLOOR,
@@ -338,10 +338,7 @@ class FilterParams:
         real("accel_var", self.accel_var, 0.0)
         if self.walls not in ("reflect", "none"):
             raise ValueError(f"walls: expected 'reflect' or 'none', got {self.walls!r:.40}")
-        low, high = vector("low", self.low), vector("high", self.high)
-        if np.any(low >= high):
-            raise ValueError(f"low, high: the area's low corner must lie below its high one, got {low.tolist()} and "
-                             f"{high.tolist()}")
+        corners(self.low, self.high)
         if np.any(vector("noise_std", self.noise_std) <= 0.0):
             raise ValueError(f"noise_std: the standard deviations must be > 0, got {np.asarray(self.noise_std).tolist()}")
         real("clutter_rate", self.clutter_rate, 0.0, 1000.0)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackjam.arguments import points, real, vector
+from trackjam.arguments import corners, points, real
 
 # At 8 m the detection probability at the top power level is p_D^max (R_0 / 8)^n_e
 # = 0.95 (6/8)^2 = 0.53 (Eq. 9 with the paper's R_0 = 6 m, n_e = 2): a coin flip per agent.
@@ -104,9 +104,7 @@ def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, hig
     if truth.ndim != 3 or truth.shape[2] != 3:
         raise ValueError(f"truth must have shape (T, K, 3), got {truth.shape}")
     u = np.array(points("initial", initial, ndim=2))
-    low, high = vector("low", low), vector("high", high)
-    if np.any(low >= high):
-        raise ValueError(f"low, high: every entry of low must lie below high's, got {low.tolist()} and {high.tolist()}")
+    low, high = corners(low, high)
     out = np.empty((len(truth), len(u), 3))
     for t, x in enumerate(truth):
         goals = team_goals(u, x)
