@@ -233,3 +233,13 @@ def test_levels_still_broadcast_against_one_geometry():
     both = detection_probability(X, U, X, [0.2, 1.12], ANT)
     assert both.shape == (2,)
     assert both.tolist() == [float(detection_probability(X, U, X, lv, ANT)) for lv in (0.2, 1.12)]
+
+
+def test_two_estimates_of_one_covariance_fuse_to_their_midpoint_in_either_order():
+    C = np.diag([1.0, 2, 3, 4, 5, 6])
+    a, b = Estimate(0.9, np.zeros(6), C), Estimate(0.8, np.full(6, 2.0), C)
+    ab, ba = fuse([a, b]), fuse([b, a])
+    np.testing.assert_allclose(ab.mean, np.ones(6))
+    np.testing.assert_allclose(ba.mean, ab.mean)
+    np.testing.assert_allclose(ab.cov, C)
+    assert ab.weights.tolist() == [0.5, 0.5]

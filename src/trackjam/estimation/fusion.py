@@ -66,8 +66,9 @@ def covariance_intersection(means, covs) -> tuple[np.ndarray, np.ndarray, np.nda
     """Covariance intersection of ``k`` Gaussian estimates; returns ``(mean, cov, omega)``.
 
     ``omega`` minimises ``trace(C(omega))`` over the simplex: a bounded scalar search for two
-    estimates, SLSQP over the simplex (started at the centre, so the result does not depend on
-    the order of the inputs beyond the optimiser's tolerance) for more.
+    estimates (1/2 each when their covariances are equal, where every omega is optimal), SLSQP
+    over the simplex (started at the centre, so the result does not depend on the order of the
+    inputs beyond the optimiser's tolerance) for more.
     """
     means = np.asarray(means, dtype=float)
     covs = np.asarray([_conditioned(C) for C in covs], dtype=float)
@@ -78,6 +79,11 @@ def covariance_intersection(means, covs) -> tuple[np.ndarray, np.ndarray, np.nda
     info_means = np.einsum("kij,kj->ki", infos, means)
     if k == 1:
         omega = np.ones(1)
+    elif k == 2 and np.array_equal(infos[0], infos[1]):
+        # equal covariances: every omega gives the same covariance and trace; the symmetric
+        # choice, so that the fused mean is the midpoint whatever the order (the search below
+        # stopped at an end of its flat objective and took the second estimate's mean)
+        omega = np.array([0.5, 0.5])
     elif k == 2:
         def trace2(w: float) -> float:
             return float(np.trace(_inverse(w * infos[0] + (1 - w) * infos[1])))
