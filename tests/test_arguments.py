@@ -29,7 +29,7 @@ def _filter_params(**changed) -> FilterParams:
     ({"levels_w": np.zeros(3)}, ValueError, "levels_w: must start at 0 (off) and increase"),
     ({"levels_w": np.array([])}, ValueError, "levels_w: expected a vector of at least 2 entries"),
     ({"levels_w": np.array([0.0, 1.0, 0.5])}, ValueError, "levels_w: must start at 0 (off) and increase"),
-    ({"r0": 0.0}, ValueError, "r0: must be a finite number in (0, inf]"),
+    ({"r0": 0.0}, ValueError, "r0: must be a finite number in (0, inf)"),
     ({"r0": float("nan")}, ValueError, "r0: must be a finite number"),
     ({"n_e": -2.0}, ValueError, "n_e: must be a finite number in (0, 10]"),
     ({"p_d_max": 2.0}, ValueError, "p_d_max: must be a finite number in [0, 1]"),
@@ -50,7 +50,7 @@ def test_an_antenna_model_refuses_what_the_configuration_would(changed, error, w
     ({"birth_particles": 0}, "birth_particles: must lie in [1, 10000000]"),
     ({"survival_prob": float("nan")}, "survival_prob: must be a finite number in [0, 1]"),
     ({"birth_prob": 2.0}, "birth_prob: must be a finite number in [0, 1]"),
-    ({"accel_var": -1.0}, "accel_var: must be a finite number in [0, inf]"),
+    ({"accel_var": -1.0}, "accel_var: must be a finite number in [0, inf)"),
     ({"walls": "bounce"}, "walls: expected 'reflect' or 'none'"),  # behaved as "none"
     ({"birth": "gauss"}, "birth: expected 'uniform', 'measurement' or 'mixed'"),
     ({"low": np.full(3, 100.0)}, "low, high: the area's low corner must lie below its high one"),
@@ -103,7 +103,8 @@ def test_solve_refuses_options_past_the_configurations_bounds(option, value, wor
     (([np.nan], 8, 8), "radial_steps: must be finite"),
     (([-1.0], 8, 8), "radial_steps: expected 1 to 32 step lengths in (0, 10000] m"),
     (([], 8, 8), "radial_steps: expected 1 to 32 step lengths"),
-    (([True], 8, 8), "radial_steps: expected step lengths in metres, got a bool"),
+    (([True], 8, 8), "radial_steps: expected numbers, got list [True]"),
+    (([1.0, True], 8, 8), "radial_steps: expected numbers, got a bool among them"),
 ])
 def test_displacement_set_refuses_what_the_configuration_would(args, words):
     with pytest.raises((ValueError, TypeError)) as err:

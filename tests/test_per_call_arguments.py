@@ -39,7 +39,8 @@ def _raises(error, words, fn, *args, **kwargs):
     ((NAN3, U, X, 1.12), ValueError, "x: must be finite, got NaN"),
     ((X, U, [np.inf, 0, 0], 1.12), ValueError, "aim: must be finite, got an infinite value"),
     ((X[:2], U, X, 1.12), ValueError, "x: expected an array of 3 entries"),
-    ((np.ones((4, 3)), np.ones((5, 3)), X, 1.12), ValueError, "x, u, aim, level_w: shapes do not broadcast together"),
+    ((np.ones((4, 3)), np.ones((5, 3)), X, 1.12), ValueError,
+     "x, u, aim, level_w: shapes do not broadcast together: x (4, 3), u (5, 3), aim (3,), level_w ()"),
     ((np.ones((4, 3)), U, X, np.ones(3)), ValueError, "x, u, aim, level_w: shapes do not broadcast together"),
     ((X, U, "here", 1.12), TypeError, "aim: expected numbers, got str"),
 ])
@@ -49,7 +50,7 @@ def test_detection_probability_refuses_bad_arrays(args, error, words):
 
 def test_received_power_takes_any_level_at_or_above_zero_and_refuses_the_rest():
     assert float(received_power(X, U, X, 5.0, ANT)) == pytest.approx(5.0 * float(cone_gain(X, U, X, ANT)))
-    _raises(ValueError, "level_w: must be finite numbers in [0, inf]", received_power, X, U, X, -1e-9, ANT)
+    _raises(ValueError, "level_w: must be finite numbers in [0, inf)", received_power, X, U, X, -1e-9, ANT)
     _raises(TypeError, "ant: expected an AntennaModel, got dict", received_power, X, U, X, 1.0, {"height": 40})
 
 
@@ -60,7 +61,7 @@ def test_interference_matrix_refuses_rows_that_do_not_match():
     _raises(ValueError, "positions, aims, levels_w: expected shapes", interference_matrix, u, u, np.ones(2), ANT)
     _raises(ValueError, "aims: must be finite", interference_matrix, u, np.where(u > 25, np.nan, u), np.ones(3), ANT)
     _raises(ValueError, "positions: expected rows of 3 entries", interference_matrix, u[0], u, np.ones(3), ANT)
-    _raises(ValueError, "levels_w: must be finite numbers in [0, inf]", interference_matrix, u, u, -np.ones(3), ANT)
+    _raises(ValueError, "levels_w: must be finite numbers in [0, inf)", interference_matrix, u, u, -np.ones(3), ANT)
 
 
 @pytest.mark.parametrize("x, u, words", [
@@ -71,6 +72,25 @@ def test_interference_matrix_refuses_rows_that_do_not_match():
 ])
 def test_h_refuses_what_is_not_positions(x, u, words):
     _raises(ValueError, words, h, x, u)
+
+
+def test_h_takes_a_state_whose_velocity_is_not_known():
+    np.testing.assert_array_equal(h(np.r_[X, np.nan, 0.0, 0.0], U), h(X, U))
+
+
+@pytest.mark.parametrize("value, words", [
+    (np.array([1.0, 2.0, 3.0]) + 1j, "x: expected numbers, got ndarray"),  # the imaginary part was dropped
+    (np.array([True, False, True]), "x: expected numbers, got ndarray"),
+    (["52", "51", "55"], "x: expected numbers, got list"),
+    ([[1.0, 2.0, 3.0], [1.0]], "x: expected numbers in a regular array"),
+])
+def test_h_refuses_what_is_not_numbers(value, words):
+    _raises(TypeError, words, h, value, U)
+
+
+def test_a_broadcast_too_large_for_memory_is_refused_before_it_is_made():
+    _raises(ValueError, "x, u: together they make 10,000,000,000 entries", h, np.zeros((100_000, 1, 3)),
+            np.zeros((1, 100_000, 3)))
 
 
 def test_h_inverse_refuses_a_negative_range_and_undoes_h():
@@ -84,9 +104,10 @@ def test_h_inverse_refuses_a_negative_range_and_undoes_h():
     ({"p_d": np.nan}, ValueError, "p_d: must be a finite number in [0, 1]"),
     ({"clutter_rate": 1e12}, ValueError, "clutter_rate: must be a finite number in [0, 1000]"),  # would not fit in memory
     ({"clutter_rate": -1.0}, ValueError, "clutter_rate: must be a finite number in [0, 1000]"),
-    ({"noise_std": [0.8]}, ValueError, "noise_std: expected a vector of 3 entries"),
-    ({"noise_std": [0.8, -0.1, 0.1]}, ValueError, "noise_std: every entry must be > 0"),
-    ({"max_range": 0.0}, ValueError, "max_range: must be a finite number in (0, inf]"),
+    ({"noise_std": [0.8, 0.1]}, ValueError, "noise_std: expected one deviation > 0 or 3 of them"),
+    ({"noise_std": [0.8, -0.1, 0.1]}, ValueError, "noise_std: must be finite numbers in [0, inf)"),
+    ({"noise_std": [0.8, 0.0, 0.1]}, ValueError, "noise_std: expected one deviation > 0 or 3 of them"),
+    ({"max_range": 0.0}, ValueError, "max_range: must be a finite number in (0, inf)"),
     ({"x": NAN3}, ValueError, "x: must be finite"),
     ({"x": np.ones((2, 3))}, ValueError, "x: expected a vector of 3 or 6 entries"),
     ({"u": [1.0, 2.0]}, ValueError, "u: expected a vector of 3 entries"),
@@ -96,6 +117,14 @@ def test_sample_scan_refuses_bad_arguments_before_any_draw(changed, error, words
     args = dict(rng=np.random.default_rng(0), x=X, u=U, p_d=0.5, noise_std=NOISE, clutter_rate=3.0, max_range=52.2)
     args |= changed
     _raises(error, words, sample_scan, *args.values())
+
+
+def test_sample_scan_takes_what_it_took_before_the_checks():
+    """0-d arrays for numbers, one deviation for all three, a legacy RandomState, a state."""
+    Z, _ = sample_scan(np.random.default_rng(1), np.r_[X, np.nan, 0, 0], U, np.array(0.5), 0.5, 3.0, np.array(52.2))
+    Z0, _ = sample_scan(np.random.default_rng(1), X, U, 0.5, np.full(3, 0.5), 3.0, 52.2)
+    np.testing.assert_array_equal(Z, Z0)
+    assert sample_scan(np.random.RandomState(1), X, U, 0.5, NOISE, 3.0, 52.2)[0].shape[1] == 3
 
 
 def test_sample_scan_draws_nothing_when_it_refuses_and_the_same_scan_when_it_takes():
@@ -136,6 +165,17 @@ ASYM = np.eye(6) + np.triu(np.ones((6, 6)), 1)
 ])
 def test_fuse_refuses_what_is_not_a_set_of_estimates(estimates, kwargs, error, words):
     _raises(error, words, fuse, estimates, **kwargs)
+
+
+def test_fuse_takes_a_0d_existence_and_a_covariance_asymmetric_by_rounding():
+    C = np.eye(6)
+    C[0, 1] += 1e-7
+    assert fuse([_estimate(e=np.array(0.9), cov=C)]).existence == pytest.approx(0.9)
+
+
+def test_fuse_refuses_a_log_evidence_that_is_not_numbers():
+    _raises(TypeError, "log_evidence: expected numbers, got dict", fuse, [_estimate()], [0.5], "evidence",
+            {"a": 1.0}, [0.5])
 
 
 def test_fuse_takes_rounding_below_zero_and_a_log_evidence_of_minus_infinity():
@@ -180,7 +220,8 @@ POS = np.array([[10.0, 10, 10], [20, 20, 20], [30, 30, 30]])
 
 @pytest.mark.parametrize("changed, error, words", [
     ({"aim": [np.nan, 50.0, 50.0]}, ValueError, "aim: must be finite"),  # gave NaN gains
-    ({"aim": [50.0, 50.0]}, ValueError, "aim: expected a vector of 3 entries"),
+    ({"aim": [50.0, 50.0]}, ValueError, "aim: expected an array of 3 entries"),
+    ({"aim": np.ones((2, 3))}, ValueError, "aim: expected one point of 3 entries"),
     ({"positions": np.ones((3, 2))}, ValueError, "positions: expected an array of 3 entries"),
     ({"displacements": D[:, :2]}, ValueError, "displacements: expected rows of 3 entries"),
     ({"low": HIGH, "high": LOW}, ValueError, "low, high: the area's low corner must lie below its high one"),
@@ -195,6 +236,23 @@ def test_build_problem_refuses_bad_arguments(changed, error, words):
     _raises(error, words, build_problem, **args)
 
 
+def test_build_problem_takes_what_it_took_before_the_checks():
+    args = dict(positions=POS, displacements=D, antenna=ANT, constraints=True)
+    plain = build_problem(aim=[50.0, 50.0, 50.0], low=LOW, high=HIGH, at_least=2, **args)
+    loose = build_problem(aim=[[50.0, 50.0, 50.0]], low=0.0, high=100.0, at_least=2.0, **args)
+    np.testing.assert_array_equal(plain.p_d, loose.p_d)
+    np.testing.assert_array_equal(plain.gain, loose.gain)
+    assert loose.at_least == 2
+
+
+def test_build_problem_names_the_positions_outside_the_area_and_a_first_control_that_moves():
+    args = dict(aim=[50.0, 50.0, 50.0], antenna=ANT, low=LOW, high=HIGH, at_least=2, constraints=True)
+    _raises(ValueError, "positions: every agent must lie inside the area [0.0, 0.0, 0.0] to [100.0, 100.0, 100.0]",
+            build_problem, positions=POS - 20.0, displacements=D, **args)
+    _raises(ValueError, "displacements: control 0 of the displacement set must be hover",
+            build_problem, positions=POS, displacements=D[1:], **args)
+
+
 def _line(xs):
     return np.array([[x, 50.0, 50.0] for x in xs])
 
@@ -202,6 +260,8 @@ def _line(xs):
 @pytest.mark.parametrize("args, error, words", [
     ((np.ones((3, 6)), [True] * 3), ValueError, "truth, detectable: need truth (T, 3)"),  # read as (6, 3) before
     ((_line([1.0, 2.0]), ["False", "True"]), ValueError, "detectable: expected booleans"),  # 'False' was detectable
+    ((_line([1.0, 2.0]), [0, 2]), ValueError, "detectable: expected booleans (or 0 and 1)"),
+    ((np.array([["a", "b", "c"]]), [False]), TypeError, "truth: expected numbers"),
     ((_line([1.0, 2.0]), [True]), ValueError, "truth, detectable: need truth (T, 3) and detectable (T,)"),
     ((np.array([[1.0, np.nan, 50.0], [2.0, 50.0, 50.0]]), [False, True]), ValueError,
      "truth: each row must be a finite position or all NaN"),
@@ -212,15 +272,29 @@ def test_clairvoyant_ceiling_refuses_what_is_not_a_truth(args, error, words):
 
 
 @pytest.mark.parametrize("initial, step, low, high, words", [
-    ([0.0, 0, 0, 1, 1, 1], 5.0, LOW, HIGH, "initial: expected rows of 3 entries"),  # read as two agents before
+    ([0.0, 0, 0, 1, 1, 1], 5.0, LOW, HIGH, "initial: expected an array of 3 entries"),  # read as two agents before
     ([[np.nan, 0, 0]], 5.0, LOW, HIGH, "initial: must be finite"),
-    ([[0.0, 0, 0]], np.nan, LOW, HIGH, "max_step: must be a finite number in [0, inf]"),
+    ([[0.0, 0, 0]], np.nan, LOW, HIGH, "max_step: must be a finite number in [0, inf)"),
     ([[0.0, 0, 0]], 5.0, HIGH, LOW, "low, high: the area's low corner must lie below its high one"),
     ([[0.0, 0, 0]], 5.0, LOW, [1.0, 1.0], "high: expected a vector of 3 entries"),
 ])
 def test_the_chase_refuses_bad_agents_steps_and_areas(initial, step, low, high, words):
     _raises(ValueError, words, chase, _line([1.0]), initial, step, low, high)
     _raises(ValueError, words, clairvoyant_ceiling, _line([1.0]), [True], initial, step, low, high)
+
+
+def test_the_chase_refuses_a_truth_of_states():
+    _raises(ValueError, "truth: need truth (T, 3)", chase, np.ones((3, 6)), [[0.0, 0, 0]], 5.0, LOW, HIGH)
+
+
+def test_the_ceiling_takes_what_it_took_before_the_checks():
+    """0 / 1 for detectable, one agent as a vector, 0-d numbers, scalar corners, no steps."""
+    truth = _line([10.0, 12.0, 14.0])
+    plain = clairvoyant_ceiling(truth, [True, False, True], [[0.0, 50.0, 50.0]], 5.0, LOW, HIGH)
+    loose = clairvoyant_ceiling(truth, [1, 0, 1], [0.0, 50.0, 50.0], np.array(5.0), 0.0, 100.0, d=np.array(8.0))
+    assert loose.share == plain.share
+    np.testing.assert_array_equal(loose.positions, plain.positions)
+    assert clairvoyant_ceiling(np.zeros((0, 3)), [], [[0.0, 0, 0]], 5.0, LOW, HIGH).share is None
 
 
 def test_an_absent_target_row_of_nan_is_still_taken():

@@ -185,15 +185,20 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
     u = np.atleast_2d(points("positions", positions))
     if u.ndim != 2:
         raise ValueError(f"positions: expected rows of 3 entries, got shape {u.shape}")
-    x_bar = points("aim", aim, ndim=1)
+    x_bar = points("aim", aim)
+    if x_bar.size != 3:
+        raise ValueError(f"aim: expected one point of 3 entries, got shape {x_bar.shape}")
+    x_bar = x_bar.reshape(3)
     D = points("displacements", displacements, ndim=2)
-    corners(low, high)
+    lo, hi = corners(low, high, scalars=True)
     N = u.shape[0]
+    if isinstance(at_least, (float, np.floating)) and float(at_least).is_integer():
+        at_least = int(at_least)  # 2.0 was taken before the checks
     at_least = whole("at_least", at_least, 1, N)
     if not np.all(in_area(u, low, high)):
-        raise ValueError("every agent must lie inside the area")
-    if np.any(D[0] != 0.0):
-        raise ValueError("control 0 of the displacement set must be hover")
+        raise ValueError(f"positions: every agent must lie inside the area {lo.tolist()} to {hi.tolist()}")
+    if len(D) == 0 or np.any(D[0] != 0.0):
+        raise ValueError("displacements: control 0 of the displacement set must be hover (0, 0, 0)")
     ok = np.stack([admissible_moves(u[i], D, low, high) for i in range(N)])  # (N, K)
     n_cand = ok.sum(axis=1).astype(np.int64)
     C = int(n_cand.max())

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from trackjam.arguments import covariance, real, vector
+from trackjam.arguments import covariance, numeric, real, vector
 from trackjam.estimation.bernoulli import Estimate, mix_visibility, posterior_visibility
 
 CONFIRM = 0.5  # an agent senses the target when e^j > 0.5 (Section V-A)
@@ -209,7 +209,7 @@ def _check_fuse(estimates, predicted, rule, log_evidence, visibility) -> None:
 
 def _log_evidence(values) -> np.ndarray:
     """log V_j: numbers below +inf (-inf: a scan no particle could have made)."""
-    a = np.asarray(values, dtype=float) if not isinstance(values, str) else np.array([np.nan])
+    a = numeric("log_evidence", values)
     if a.ndim != 1 or np.any(np.isnan(a)) or np.any(a == np.inf):
         raise ValueError(f"log_evidence: expected a vector of numbers below +inf, got {np.asarray(values).tolist()!r:.60}")
     return a

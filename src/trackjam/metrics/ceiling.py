@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackjam.arguments import corners, points, real
+from trackjam.arguments import corners, numeric, points, real
 
 # At 8 m the detection probability at the top power level is p_D^max (R_0 / 8)^n_e
 # = 0.95 (6/8)^2 = 0.53 (Eq. 9 with the paper's R_0 = 6 m, n_e = 2): a coin flip per agent.
@@ -39,7 +39,10 @@ def chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, high) ->
     """Positions (T, N, 3) of N agents that start at ``initial`` (N, 3) and, at each step t,
     move at most ``max_step`` [m] straight toward ``truth[t]`` (T, 3; rows with NaN: the target
     is absent and they hover), clipped to the box [low, high]: :func:`team_chase` with one target."""
-    return team_chase(np.asarray(truth, dtype=float).reshape(-1, 1, 3), initial, max_step, low, high)
+    truth = numeric("truth", truth)
+    if truth.ndim != 2 or truth.shape[1] != 3:
+        raise ValueError(f"truth: need truth (T, 3), got {truth.shape}")
+    return team_chase(truth.reshape(-1, 1, 3), initial, max_step, low, high)
 
 
 def clairvoyant_ceiling(
@@ -56,7 +59,7 @@ def clairvoyant_ceiling(
     (N, 3) the agents' positions at t = 0, ``max_step`` the largest radial step [m]
     (``max(agents.radial_steps)``), ``low``, ``high`` the area's corners, ``d`` [m]:
     :func:`team_ceiling` with one target."""
-    truth = np.asarray(truth, dtype=float)
+    truth = numeric("truth", truth)
     detectable = np.asarray(detectable)
     if truth.ndim != 2 or truth.shape[1] != 3 or detectable.shape != truth.shape[:1]:
         raise ValueError(f"truth, detectable: need truth (T, 3) and detectable (T,), got {truth.shape} and {detectable.shape}")
@@ -100,11 +103,14 @@ def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, hig
     gives them (``truth`` (T, K, 3), NaN rows while a target is absent; with none present they
     hover), clipped to the box [low, high]. :func:`chase` is its K = 1 case."""
     max_step = real("max_step", max_step, 0.0)
-    truth = np.asarray(truth, dtype=float)
+    truth = numeric("truth", truth)
     if truth.ndim != 3 or truth.shape[2] != 3:
-        raise ValueError(f"truth must have shape (T, K, 3), got {truth.shape}")
-    u = np.array(points("initial", initial, ndim=2))
-    low, high = corners(low, high)
+        raise ValueError(f"truth: must have shape (T, K, 3), got {truth.shape}")
+    u = points("initial", initial)
+    if u.ndim > 2:
+        raise ValueError(f"initial: expected rows of 3 entries (one agent: a vector), got shape {u.shape}")
+    u = np.array(u.reshape(-1, 3))
+    low, high = corners(low, high, scalars=True)
     out = np.empty((len(truth), len(u), 3))
     for t, x in enumerate(truth):
         goals = team_goals(u, x)
@@ -139,14 +145,18 @@ def team_ceiling(truth: np.ndarray, detectable: np.ndarray, initial: np.ndarray,
     is its K = 1 case. A reference, not a bound: sharing the chasers out otherwise can do better
     for one target at another's cost."""
     d = real("d", d, 0.0, above=True)
-    truth = np.asarray(truth, dtype=float)
+    truth = numeric("truth", truth)
     detectable = np.asarray(detectable)
     if truth.ndim != 3 or truth.shape[2] != 3 or detectable.shape != truth.shape[:2]:
-        raise ValueError(f"need truth (T, K, 3) and detectable (T, K), got {truth.shape} and {detectable.shape}")
+        raise ValueError(f"truth, detectable: need truth (T, K, 3) and detectable (T, K), got {truth.shape} and {detectable.shape}")
+    if detectable.size == 0:
+        detectable = detectable.astype(bool)
+    elif detectable.dtype.kind in "iu" and np.all((detectable == 0) | (detectable == 1)):
+        detectable = detectable.astype(bool)  # 0 / 1 was taken before the checks
     if detectable.dtype != bool:
-        raise ValueError(f"detectable: expected booleans, got {detectable.dtype}")
+        raise ValueError(f"detectable: expected booleans (or 0 and 1), got {detectable.dtype}")
     if np.any(detectable & ~np.isfinite(truth).all(axis=2)):
-        raise ValueError("a detectable step has no true position")
+        raise ValueError("truth, detectable: a detectable step has no true position")
     if np.any(np.isinf(truth)) or np.any(np.isnan(truth).any(axis=2) != np.isnan(truth).all(axis=2)):
         raise ValueError("truth: each row must be a finite position or all NaN (absent)")
     positions = team_chase(truth, initial, max_step, low, high)

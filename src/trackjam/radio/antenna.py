@@ -118,7 +118,8 @@ def _beam(x, u, aim, level_w, ant, level_max: float = math.inf):
     _antenna(ant)
     x, u, aim = points("x", x), points("u", u), points("aim", aim)
     level_w = amounts("level_w", level_w, 0.0, level_max)
-    together(x=x.shape[:-1], u=u.shape[:-1], aim=aim.shape[:-1], level_w=level_w.shape)
+    together(dict(x=x.shape, u=u.shape, aim=aim.shape, level_w=level_w.shape),
+             x=x.shape[:-1], u=u.shape[:-1], aim=aim.shape[:-1], level_w=level_w.shape)
     return x, u, aim, level_w
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackjam.arguments import amounts, points, real, together, vector
+from trackjam.arguments import amounts, points, real, together
 from trackjam.radio.antenna import AntennaModel, detection_probability, received_power
 
 
@@ -25,8 +25,8 @@ def wrap_angle(a):
 def h(x, u) -> np.ndarray:
     """Eq. (7): [rho, azimuth, inclination] of position ``x`` (..., 3), or of the position of
     state ``x`` (..., 6), seen from ``u`` (..., 3); finite, of shapes that broadcast."""
-    x, u = points("x", x, (3, 6)), points("u", u)
-    together(x=x.shape[:-1], u=u.shape[:-1])
+    x, u = points("x", x, (3, 6), position_only=True), points("u", u)
+    together(dict(x=x.shape, u=u.shape), x=x.shape[:-1], u=u.shape[:-1])
     d = x[..., :3] - u
     rho = np.linalg.norm(d, axis=-1)
     az = np.arctan2(d[..., 1], d[..., 0])
@@ -38,7 +38,7 @@ def h_inverse(z, u) -> np.ndarray:
     """Position whose measurement from ``u`` is ``z`` (inverse of :func:`h`): ``z`` (..., 3)
     finite with rho >= 0, ``u`` (..., 3) finite, of shapes that broadcast."""
     z, u = points("z", z), points("u", u)
-    together(z=z.shape[:-1], u=u.shape[:-1])
+    together(dict(z=z.shape, u=u.shape), z=z.shape[:-1], u=u.shape[:-1])
     if np.any(z[..., 0] < 0.0):
         raise ValueError(f"z: its range rho (first entry) must be >= 0, got {float(z[..., 0].min())!r}")
     rho, az, inc = z[..., 0], z[..., 1], z[..., 2]
@@ -70,14 +70,15 @@ CLUTTER_RATE_MAX = 1000.0  # the configuration's bound on clutter.rate
 
 
 def _scan_arguments(rng, x, u, p_d, noise_std, clutter_rate, max_range) -> None:
-    if not isinstance(rng, np.random.Generator):
+    if not isinstance(rng, (np.random.Generator, np.random.RandomState)):
         raise TypeError(f"rng: expected a numpy Generator (numpy.random.default_rng(seed)), got {type(rng).__name__}")
     if x is not None:
-        points("x", x, (3, 6), ndim=1)
+        points("x", x, (3, 6), ndim=1, position_only=True)
     points("u", u, ndim=1)
     real("p_d", p_d, 0.0, 1.0)
-    if np.any(vector("noise_std", noise_std) <= 0.0):
-        raise ValueError(f"noise_std: every entry must be > 0, got {np.asarray(noise_std).tolist()!r}")
+    std = amounts("noise_std", noise_std)
+    if std.ndim > 1 or std.size not in (1, 3) or np.any(std <= 0.0):
+        raise ValueError(f"noise_std: expected one deviation > 0 or 3 of them, got {std.tolist()!r}")
     real("clutter_rate", clutter_rate, 0.0, CLUTTER_RATE_MAX)
     real("max_range", max_range, 0.0, above=True)
 
@@ -96,8 +97,8 @@ def sample_scan(
     the target's measurement, when there is one, comes first.
 
     The random draws happen in a fixed order whatever the outcome, so one seed gives one scan.
-    ``x`` (3 or 6 entries) and ``u`` (3) finite, ``p_d`` in [0, 1], ``noise_std`` 3 entries
-    > 0, ``clutter_rate`` in [0, 1000] (the configuration's bound), ``max_range`` > 0: checked
+    ``x`` (3 or 6 entries, its position finite) and ``u`` (3) finite, ``p_d`` in [0, 1],
+    ``noise_std`` 3 entries (or one for all) > 0, ``clutter_rate`` in [0, 1000] (the configuration's bound), ``max_range`` > 0: checked
     before any draw.
     """
     _scan_arguments(rng, x, u, p_d, noise_std, clutter_rate, max_range)

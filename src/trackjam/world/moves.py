@@ -22,8 +22,6 @@ def displacement_set(radial_steps, n_inclination: int, n_azimuth: int) -> np.nda
     steps = vector("radial_steps", radial_steps, None)
     if steps.size == 0 or np.any(steps <= 0) or np.any(steps > 1e4) or steps.size > 32:
         raise ValueError(f"radial_steps: expected 1 to 32 step lengths in (0, 10000] m, got {steps.tolist()!r:.60}")
-    if any(isinstance(r, (bool, np.bool_)) for r in np.ravel(np.asarray(radial_steps, dtype=object))):
-        raise TypeError("radial_steps: expected step lengths in metres, got a bool among them")
     radial_steps = steps.tolist()
     out = [np.zeros(3)]
     seen = {(0.0, 0.0, 0.0)}
