@@ -392,7 +392,20 @@ def test_a_numba_variable_that_would_break_a_run_is_one_line(tmp_path, args, var
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("variable, value", [("NUMBA_OPT", "2"), ("NUMBA_DISABLE_JIT", "0"), ("NUMBA_OPT", "max")])
+@pytest.mark.parametrize("args", [["validate", "paper-fig3"], ["run", "paper-fig3", "--set", "steps=1", "--out", "{tmp}/r"]])
+def test_a_matplotlib_backend_matplotlib_does_not_know_is_one_line_before_any_work(tmp_path, args):
+    # MPLBACKEND=nonsense: validate said ok, run simulated every step, then failed with a
+    # traceback where it imported matplotlib to draw its figure, and wrote nothing
+    import os
+
+    r = subprocess.run([sys.executable, "-m", "trackjam", *[a.format(tmp=tmp_path) for a in args]],
+                       capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "nonsense"})
+    assert _one_line(r).startswith("trackjam: error: MPLBACKEND='nonsense': matplotlib does not know this backend")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("variable, value", [("NUMBA_OPT", "2"), ("NUMBA_DISABLE_JIT", "0"), ("NUMBA_OPT", "max"),
+                                             ("MPLBACKEND", "Agg"), ("MPLBACKEND", "svg")])
 def test_a_numba_variable_numba_reads_is_taken(variable, value):
     import os
 

@@ -222,8 +222,10 @@ def test_bench_json_may_replace_its_own_earlier_figures(tmp_path):
     (tmp_path / "b.json").write_text('{"machine": {"cores": 2}, "quick": true, "env": []}\n')
     (tmp_path / "list.json").write_text('[1, 2]\n')
     (tmp_path / "binary.json").write_bytes(b"\xff\xfe\x00")
+    (tmp_path / "deep.json").write_bytes(b"[" * 100_000 + b"]" * 100_000)  # a RecursionError in the parser
     assert _earlier_figures(tmp_path / "b.json")
     assert not _earlier_figures(tmp_path / "list.json") and not _earlier_figures(tmp_path / "binary.json")
+    assert not _earlier_figures(tmp_path / "deep.json")
 
 
 def test_atomic_write_refuses_to_replace_what_is_not_a_regular_file(tmp_path):

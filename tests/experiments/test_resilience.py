@@ -153,7 +153,8 @@ def test_reading_a_damaged_trial_names_the_file():
         read_trial(Path("/nonexistent/c01-t0000.parquet"))
 
 
-@pytest.mark.parametrize("content", [b"", b"{\"experiment\": ", b"\xff\xfe\x00", b"[1, 2]"])
+@pytest.mark.parametrize("content", [b"", b"{\"experiment\": ", b"\xff\xfe\x00", b"[1, 2]",
+                                     b"[" * 100_000 + b"]" * 100_000])  # deeper than the parser recurses
 def test_an_unreadable_experiment_json_is_one_line_and_changes_nothing(fresh, tmp_path, content):
     out = tmp_path / "exp"
     run_experiment("constraints", workers=1, out=out, **SWEEP)

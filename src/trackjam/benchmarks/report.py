@@ -138,7 +138,7 @@ def _earlier_figures(path: Path) -> bool:
         if path.stat().st_size > 10_000_000:
             return False
         data = json.loads(path.read_bytes())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: [[[[... nested too deep to parse
         return False
     return isinstance(data, dict) and {"machine", "quick"} <= set(data)
 

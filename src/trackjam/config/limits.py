@@ -297,8 +297,8 @@ def check_environment() -> None:
     """Refuse, in one line, a setting in the environment that a command would trip over:
     ``TRACKJAM_THREADS`` (read when a run builds its GRASP), ``NUMBA_NUM_THREADS`` (read by
     numba when it loads: 0 or -1 raised inside numba, text was a warning with a traceback), any
-    other ``NUMBA_*`` variable numba cannot parse (:func:`_numba_variables`) and
-    ``NUMBA_DISABLE_JIT``. Every command checks them before it loads anything, so that
+    other ``NUMBA_*`` variable numba cannot parse (:func:`_numba_variables`),
+    ``NUMBA_DISABLE_JIT`` and a ``MPLBACKEND`` matplotlib does not know (:func:`_matplotlib_backend`). Every command checks them before it loads anything, so that
     `validate` refuses what `run` would."""
     threads_variable("TRACKJAM_THREADS", "one per agent up to the CPU count")
     env = os.environ.get("NUMBA_NUM_THREADS")
@@ -312,6 +312,25 @@ def check_environment() -> None:
                               "(or unset: numba's default, the CPU count)")
     if any(k.startswith("NUMBA_") and k != "NUMBA_NUM_THREADS" for k in os.environ):
         _numba_variables()
+    if "MPLBACKEND" in os.environ:
+        _matplotlib_backend()
+
+
+def _matplotlib_backend() -> None:
+    """``MPLBACKEND``, read as matplotlib reads it when it loads (paid only when it is set): a
+    name it does not know made ``import matplotlib`` raise, so a run simulated every step and
+    then failed with a traceback where it draws its figure, writing nothing."""
+    import sys
+
+    if "matplotlib" in sys.modules:
+        return
+    value = os.environ["MPLBACKEND"]
+    try:
+        import matplotlib  # noqa: F401
+    except ValueError:
+        sys.modules.pop("matplotlib", None)
+        raise ConfigError(f"MPLBACKEND={shortened(value, 40)!r}: matplotlib does not know this backend; unset it "
+                          "(trackjam draws its figures with Agg, which needs no display) or name one of matplotlib's") from None
 
 
 _UNPARSED = re.compile(r"Environment variable '(\w+)' is defined but its associated value '(.*?)' could not be parsed",

@@ -166,7 +166,8 @@ def read_parameters(meta: Path) -> dict:
         raise ConfigError(f"{meta}: larger than {PARAMETERS_MAX_BYTES // 1_000_000} MB; {fix}")
     try:
         params = json.loads(meta.read_text())
-    except (OSError, ValueError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer past 4300 digits
+    except (OSError, ValueError, RecursionError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer
+        # past 4300 digits, [[[[... nested deeper than the parser recurses
         reason = "empty" if meta.is_file() and meta.stat().st_size == 0 else type(err).__name__
         raise ConfigError(f"{meta}: unreadable ({reason}); remove it to start over, or choose another --out") from None
     if not isinstance(params, dict) or "experiment" not in params:
