@@ -184,3 +184,23 @@ def test_the_preset_row_of_holding_is_the_preset_itself():
     mine, theirs = s.control.model_dump(), preset.control.model_dump()
     mine["grasp"].pop("threads"), theirs["grasp"].pop("threads")  # experiments run one thread per trial
     assert mine == theirs
+
+
+@pytest.mark.parametrize("name", ["table1", "swarm"])
+def test_an_area_without_the_presets_start_is_taken_where_the_trials_place_their_own(name):
+    # Fig. 3's agents at 30-40 m lay outside --set area.high=[25,25,25]: every drawing experiment
+    # refused the area, and --set agents.initial, which every trial sets, was refused too
+    from trackjam.experiments.engine import _plan
+
+    overrides = ["area.high=[25,25,25]"]
+    scenarios, _ = _plan(get_experiment(name), 1, 2, 0, overrides)
+    assert scenarios
+    for s in scenarios.values():
+        assert np.all(np.array(s.agents.initial, dtype=float) <= 25.0)
+
+
+def test_an_experiment_on_fig3s_start_still_refuses_an_area_without_it():
+    from trackjam.experiments.engine import _plan
+
+    with pytest.raises(ConfigError, match=r"--set area.high=\[25,25,25\]: agents.initial\[0\]"):
+        _plan(get_experiment("holding"), 1, 2, 0, ["area.high=[25,25,25]"])

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from trackjam.config import (
     Scenario,
     apply_overrides,
@@ -277,15 +279,15 @@ def _overlaps(a: str, b: str) -> bool:
 
 def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
     """Refuse ``--set`` keys that the trials or the experiment's sweep set themselves."""
-    owned_keys = {DRAW: _DRAW_TRIAL_KEYS, SEED: _SEED_TRIAL_KEYS, SWARM: _SWARM_TRIAL_KEYS}[experiment.trials]
+    owned = owned_keys(experiment)
     for item in overrides:
         key = item.partition("=")[0].strip()
         if experiment.trials != SWARM and _overlaps(key, "targets"):  # else: "give target or targets"
             raise ConfigError(f"--set {key}: experiment {experiment.name} draws one target per trial; "
                               "several targets: trackjam experiment swarm")
-        for owned in owned_keys:
-            if _overlaps(key, owned):
-                hint = " (use --steps)" if owned == "steps" else " (use --seed)" if owned == "seed" else ""
+        for key_owned in owned:
+            if _overlaps(key, key_owned):
+                hint = " (use --steps)" if key_owned == "steps" else " (use --seed)" if key_owned == "seed" else ""
                 raise ConfigError(f"--set {key}: set by every trial of an experiment, not settable{hint}")
         for swept in sorted(experiment.swept_keys):
             if _overlaps(key, swept):
@@ -328,16 +330,57 @@ def trial_scenario(
                              overridden_keys(overrides))
 
 
-def base_scenario(base: dict, preset: str = BASE_PRESET, overrides: list[str] | None = None) -> Scenario:
+def owned_keys(experiment: Experiment) -> tuple[str, ...]:
+    """The keys every trial of ``experiment`` sets itself (a --set of them is refused)."""
+    return {DRAW: _DRAW_TRIAL_KEYS, SEED: _SEED_TRIAL_KEYS, SWARM: _SWARM_TRIAL_KEYS}[experiment.trials]
+
+
+def _placed_inside(base: dict, owned: tuple[str, ...]) -> dict:
+    """``base`` with the starting positions its trials place themselves (``owned``) moved inside
+    its area, apart from one another: the preset's own (Fig. 3's agents at 30-40 m) are never
+    simulated, and lying outside a smaller ``--set area`` they made every such experiment
+    refuse it, with no --set to mend it. An area that is not three numbers per corner is left
+    for the validation to name."""
+    data = apply_overrides(base, [])
+    area = data.get("area") or {}
+    try:
+        low = np.asarray(area.get("low", (0.0, 0.0, 0.0)), dtype=float).reshape(3)
+        high = np.asarray(area.get("high", (100.0, 100.0, 100.0)), dtype=float).reshape(3)
+    except (TypeError, ValueError, AttributeError):
+        return data
+
+    def at(*fractions: float) -> list[float]:
+        return [float(v) for v in low + (high - low) * np.asarray(fractions)]
+
+    agents = data.get("agents")
+    if "agents.initial" in owned and isinstance(agents, dict) and isinstance(agents.get("initial"), list):
+        n = len(agents["initial"])
+        agents["initial"] = [at((i + 1) / (n + 1), (i + 1) / (n + 1), 0.25) for i in range(n)]
+    if "agents.initial_aim" in owned and isinstance(agents, dict) and agents.get("initial_aim") is not None:
+        agents["initial_aim"] = at(0.5, 0.5, 0.5)
+    targets = [data.get("target")] if any(k in owned for k in ("target", "target.initial")) else []
+    if "targets" in owned and isinstance(data.get("targets"), list):
+        targets += data["targets"]
+    targets = [t for t in targets if isinstance(t, dict) and isinstance(t.get("initial"), list)]
+    for k, t in enumerate(targets):
+        t["initial"] = at(0.5, (k + 1) / (len(targets) + 1), 0.75) + list(t["initial"][3:])
+    return data
+
+
+def base_scenario(base: dict, preset: str = BASE_PRESET, overrides: list[str] | None = None,
+                  owned: tuple[str, ...] = ()) -> Scenario:
     """The base scenario validated (so a bad --set fails here, before any trial); a problem with
-    a key one of ``overrides`` set is blamed on that ``--set`` item, as `trackjam run` does."""
-    return validate_scenario(base, f"base scenario of the experiment (preset {preset} with --set)",
-                             overridden_keys(overrides))
+    a key one of ``overrides`` set is blamed on that ``--set`` item, as `trackjam run` does.
+    The starting positions the trials place themselves (``owned``, :func:`owned_keys`) are moved
+    inside the area first (:func:`_placed_inside`)."""
+    return validate_scenario(_placed_inside(base, owned) if owned else base,
+                             f"base scenario of the experiment (preset {preset} with --set)", overridden_keys(overrides))
 
 
-def draw_for(base: dict, seed: int, k: int) -> TrialDraw:
-    """Trial k's draw in the base scenario's area (validated first, so a bad --set fails here)."""
-    s = base_scenario(base)
+def draw_for(base: dict, seed: int, k: int, space: Scenario | None = None) -> TrialDraw:
+    """Trial k's draw in the area of ``space``, the validated base scenario (validated here when
+    not given, so a bad --set fails here)."""
+    s = space if space is not None else base_scenario(base)
     return draw_trial(seed, k, s.area.low, s.area.high, s.n_agents, s.filter.birth_speed)
 
 

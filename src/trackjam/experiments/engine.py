@@ -38,6 +38,7 @@ from trackjam.experiments.definitions import (
     base_scenario,
     configuration_columns,
     draw_for,
+    owned_keys,
     get_experiment,
     swarm_scenario,
     trial_scenario,
@@ -336,7 +337,8 @@ def _names(names: list[str], shown: int = 3) -> str:
 def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str]):
     """Every (config, trial) scenario, built and so validated, and the configuration columns."""
     base = base_data(experiment, steps, overrides)
-    space = base_scenario(base, experiment.preset, overrides)  # a bad --set is named here, before any trial
+    # a bad --set is named here, before any trial
+    space = base_scenario(base, experiment.preset, overrides, owned_keys(experiment))
     if experiment.trials == SWARM:
         # trial-major: a sweep stopped early leaves every cell with the same trials
         scenarios = {(c.index, k): swarm_scenario(experiment, space, base, c, k, seed)
@@ -345,7 +347,7 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
             if several_targets(scenarios[(c.index, 0)]):
                 check_swarm_options(scenarios[(c.index, 0)], overrides)
     else:
-        draws = [draw_for(base, seed, k) for k in range(trials)]
+        draws = [draw_for(base, seed, k, space) for k in range(trials)]
         scenarios = {
             (c.index, d.index): trial_scenario(experiment, base, c, d, seed, overrides)
             for c in experiment.configurations
