@@ -177,6 +177,36 @@ def _edit_figure(path: Path, key: str, value: float) -> None:
     pq.write_table(table.set_column(table.column_names.index(key), key, pa.array([value])), path)
 
 
+@pytest.mark.parametrize("key, value, words", [
+    ("ospa_mean", -1e50, "ospa_mean -1e+50 is negative"),
+    ("held_share", 7.5, "held_share 7.5 is not a share in [0, 1]"),
+    ("reacquired_after_last_spell", 0.5, "reacquired_after_last_spell 0.5 is not 0 or 1"),
+    ("jamming_incidents_per_agent", -5.0, "jamming_incidents_per_agent -5 is negative"),
+])
+def test_a_hand_edited_figure_no_trial_yields_is_run_again(done, tmp_path, key, value, words):
+    # an OSPA of -1e50, a held share of 7.5 and a re-acquisition of 0.5 were read back into
+    # summary.csv and paired.csv (a "significant" paired difference of 1e99)
+    from trackjam.experiments.summary import DamagedTrial, read_trial
+
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    path = out / "trials" / trial_filename(1, 0)
+    _edit_figure(path, key, value)
+    with pytest.raises(DamagedTrial, match=re.escape(words)):
+        read_trial(path, (key,))
+    result = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert result.ran == 1 and any("damaged" in n and path.name in n for n in result.notes)
+    for name in ("summary.csv", "paired.csv"):
+        assert (out / name).read_bytes() == (done / name).read_bytes(), name
+
+
+def test_a_figure_that_does_not_apply_stays_nan():
+    from trackjam.experiments.summary import figure_problem
+
+    assert figure_problem("held_share", float("nan")) is None and figure_problem("ospa_mean", 0.0) is None
+    assert figure_problem("held_share", 1.0) is None and figure_problem("a_new_gain", -3.0) is None
+
+
 def test_hand_edited_huge_figures_are_run_again_without_an_overflow(done, tmp_path):
     # 1e308 is finite, so it was read back: the interval's squares and the pairs' differences
     # overflowed (numpy's RuntimeWarnings), and summary.csv and paired.csv held inf

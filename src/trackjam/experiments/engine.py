@@ -50,6 +50,7 @@ from trackjam.experiments.summary import (
     TIMING,
     TRIAL_MAX_FIGURE,
     DamagedTrial,
+    figure_problem,
     paired_rows,
     parse_trial_filename,
     read_trial,
@@ -501,6 +502,10 @@ def _check_record(record: Mapping[str, Any], name: str, experiment: Experiment) 
     if huge:
         raise ValueError(f"the trial function returned {', '.join(huge)} past +-{TRIAL_MAX_FIGURE:g} "
                          f"(experiment {name} cannot summarise it)")
+    wrong = [p for k in record_keys(experiment) if isinstance(record[k], (int, float))
+             and (p := figure_problem(k, float(record[k])))]
+    if wrong:  # read back, the file would be damaged and run again each time
+        raise ValueError(f"the trial function returned {wrong[0]} (experiment {name} cannot summarise it)")
 
 
 def _finish(out: Path, experiment, configurations: list[dict], records: list[Mapping], ran: int,

@@ -120,10 +120,37 @@ TRIAL_MAX_VALUES = 20_000_000
 TRIAL_MAX_FIGURE = 1e100
 
 
+# the figures no trial can make negative (powers, incidents, errors, times, steps, rates); a
+# figure ``*_share`` lies in [0, 1] and a count of COUNTS is 0 or 1. A figure of another name (a
+# new experiment's) is only held to TRIAL_MAX_FIGURE.
+NONNEGATIVE = frozenset({
+    "jamming_incidents_per_agent", "target_received_w_mean", "agent_received_w_mean", "transmit_w_mean",
+    "ospa_mean", "ospa_card_mean", "false_tracks_per_step", "downed_step_mean", "step_s_mean", "solve_s_mean",
+})
+COUNT_KEYS = frozenset(k for _, k, _ in COUNTS)
+
+
+def figure_problem(key: str, value: float) -> str | None:
+    """What is wrong with figure ``key`` of a trial record (None: nothing; NaN, a figure that does
+    not apply, is fine): outside [0, 1] for a share, not 0 or 1 for a count, negative for a
+    figure in :data:`NONNEGATIVE` (a hand-edited OSPA of -1e50 or a held share of 7.5 went into
+    summary.csv)."""
+    if math.isnan(value):
+        return None
+    if key.endswith("_share") and not -1e-12 <= value <= 1.0 + 1e-12:
+        return f"{key} {value:g} is not a share in [0, 1]"
+    if key in COUNT_KEYS and value not in (0.0, 1.0):
+        return f"{key} {value:g} is not 0 or 1"
+    if key in NONNEGATIVE and value < 0.0:
+        return f"{key} {value:g} is negative"
+    return None
+
+
 def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
     """The record in one trial file; :class:`DamagedTrial` if it is not a complete one (one
     row, the identity columns and the figures ``keys``, each NaN or within
-    +-:data:`TRIAL_MAX_FIGURE`) or holds more than :data:`TRIAL_MAX_VALUES` values."""
+    +-:data:`TRIAL_MAX_FIGURE` and in its range, :func:`figure_problem`) or holds more than
+    :data:`TRIAL_MAX_VALUES` values."""
     try:
         with open(path, "rb") as fh:  # a file object, as write_trial's
             meta = pq.read_metadata(fh)
@@ -148,6 +175,8 @@ def read_trial(path: Path, keys: tuple[str, ...] = RECORD_KEYS) -> dict:
         raise DamagedTrial(f"{path.name}: an infinite figure")
     if any(abs(record[k]) > TRIAL_MAX_FIGURE for k in keys):  # NaN compares False: it stays
         raise DamagedTrial(f"{path.name}: a figure past +-{TRIAL_MAX_FIGURE:g}, larger than any trial yields")
+    if problems := [p for k in keys if (p := figure_problem(k, float(record[k])))]:
+        raise DamagedTrial(f"{path.name}: {problems[0]}, which no trial yields")
     return record
 
 
