@@ -152,6 +152,66 @@ def test_what_a_killed_write_leaves_does_not_block_the_rerun_and_is_removed(tmp_
         check_out_dir(out, small_result.scenario)
 
 
+def test_a_second_run_into_one_folder_waits_for_the_first_and_leaves_its_staging_alone(tmp_path, small_result):
+    # a second run removed the first one's live staging folder as a leftover, and the first
+    # failed ("replay.html: cannot be written (No such file or directory)")
+    import fcntl
+    import os
+    import threading
+    import time
+
+    from trackjam.simulation.output import write_run
+
+    out = tmp_path / "run"
+    write_run(small_result, out, figures=False)
+    live = out / ".trackjam-staging.live0001.tmp"  # the first run's, while it writes
+    live.mkdir()
+    fd = os.open(out, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # the first run holds the folder
+    errors = []
+    second = threading.Thread(target=lambda: _catch(errors, write_run, small_result, out, figures=False))
+    try:
+        second.start()
+        time.sleep(1.0)
+        assert second.is_alive() and live.is_dir()  # it waits, and has removed nothing
+    finally:
+        live.rmdir()  # the first run is done
+        os.close(fd)
+    second.join(60)
+    assert not second.is_alive() and errors == []
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
+
+
+def _catch(errors, fn, *args, **kwargs):
+    try:
+        fn(*args, **kwargs)
+    except BaseException as err:  # noqa: BLE001 (reported by the test's thread)
+        errors.append(err)
+
+
+def test_a_run_of_another_scenario_written_meanwhile_is_kept_and_said(tmp_path, small_result, monkeypatch):
+    import trackjam.simulation.output as output
+    from trackjam.simulation.loop import simulate
+
+    out = tmp_path / "run"
+    other = simulate(load_scenario("paper-fig3", FAST + ["seed=7"]))
+    output.write_run(other, out, figures=False)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    check = output.check_out_dir
+    calls = []
+
+    def first_before_the_other_run(*args, **kwargs):  # the check at the start saw the folder empty
+        calls.append(1)
+        if len(calls) > 1:
+            check(*args, **kwargs)
+
+    monkeypatch.setattr(output, "check_out_dir", first_before_the_other_run)
+    with pytest.raises(ConfigError, match=r"holds another scenario's run.*another run wrote there while this one ran"):
+        output.write_run(small_result, out, figures=False)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
 def test_a_full_disk_is_one_line_and_changes_nothing(tmp_path, small_result, monkeypatch):
     import errno
 

@@ -9,7 +9,8 @@ it was, an earlier run's files whole and none of the new ones, and the folders t
 are removed again. Only a SIGKILL during the renames, or a rename the file system refuses
 (said in the one line), can leave some files new and others old. What a SIGKILL leaves behind
 (the hidden staging folder, or a temporary file of an earlier version) is ours, ignored by the
-check and removed by the next write.
+check and removed by the next write. Two runs writing into one folder take turns under a lock
+on it (:func:`_folder_locked`), and the second checks the folder again once it has the lock.
 """
 
 from __future__ import annotations
@@ -23,6 +24,11 @@ import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
+
+try:
+    import fcntl
+except ImportError:  # not on Windows: two runs into one folder there are not told apart
+    fcntl = None
 
 from trackjam.errors import ConfigError, OutputError
 from trackjam.files import TEMP_MARK, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
@@ -139,6 +145,31 @@ def _put_back(previous: dict) -> None:
         _put_back(previous)
 
 
+@contextmanager
+def _folder_locked(out: Path):
+    """Hold an exclusive lock (``flock``) on the folder ``out`` while a run's files are written
+    into it, so that two runs writing into one folder take turns: the second waits (a few
+    seconds at most, and Ctrl-C ends the wait) and then finds the first one's run, which it
+    replaces whole if it is of the same scenario. Without it the second removed the first's
+    staging folder as a leftover, and the first failed. A folder that cannot be opened or a file
+    system without locks (some network mounts) goes unlocked, as before."""
+    try:
+        fd = os.open(out, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)) if fcntl is not None else None
+    except OSError:
+        fd = None
+    if fd is None:
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
+    finally:
+        os.close(fd)  # and with it the lock
+
+
 def _make_folder(out: Path) -> list[Path]:
     """``mkdir -p out``, returning the folders it made, outermost first: exactly those, so that
     a failed write removes no folder that was there before (a path through ``..`` names some
@@ -227,21 +258,28 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
             made = _make_folder(out)
         except OSError as err:
             raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
-        _remove_leftovers(out)
-        try:
-            stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
-        except OSError as err:
-            raise OutputError(f"--out {out}: cannot write in the folder ({err.strerror or err})") from None
-        names = _stage(result, stage, out, figures)
-        with _signals_held():
-            for k, name in enumerate(names):  # summary.json last
+        with _folder_locked(out):
+            if not made:  # checked again under the lock: another run may have written here meanwhile
                 try:
-                    os.replace(stage / name, out / name)
-                except OSError as err:  # a name taken since the check (a folder), a file system's refusal
-                    raise OutputError(
-                        f"{out / name}: cannot be replaced ({err.strerror or err}); "
-                        f"{k} of the run's {len(names)} files were moved into {out} before it") from None
-            shutil.rmtree(stage, ignore_errors=True)
+                    check_out_dir(out, result.scenario)
+                except ConfigError as err:
+                    raise ConfigError(f"{err} (another run wrote there while this one ran; nothing of this "
+                                      "one was written)") from None
+            _remove_leftovers(out)  # under the lock: a live writer's staging folder is never among them
+            try:
+                stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
+            except OSError as err:
+                raise OutputError(f"--out {out}: cannot write in the folder ({err.strerror or err})") from None
+            names = _stage(result, stage, out, figures)
+            with _signals_held():
+                for k, name in enumerate(names):  # summary.json last
+                    try:
+                        os.replace(stage / name, out / name)
+                    except OSError as err:  # a name taken since the check (a folder), a file system's refusal
+                        raise OutputError(
+                            f"{out / name}: cannot be replaced ({err.strerror or err}); "
+                            f"{k} of the run's {len(names)} files were moved into {out} before it") from None
+                shutil.rmtree(stage, ignore_errors=True)
     except BaseException:
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
