@@ -621,3 +621,29 @@ def test_an_opening_angle_just_past_its_bound_is_shown_as_given():
 def test_a_set_item_with_an_empty_key_is_shown_whole(item):
     # `--set =5` said "--set '': empty key", not the item typed
     assert _refused("paper-fig3", [item]) == f"--set {item!r}: an empty key (before the '=' or between two dots)"
+
+
+@pytest.mark.parametrize("value, kind", [("2001-12-14", "the date 2001-12-14"), ("yes", "the boolean true"),
+                                         ("0x10", "the number 16"), ("1e5", "the number 100000.0")])
+def test_a_text_yaml_reads_as_something_else_says_what_it_read_and_how_to_quote(value, kind):
+    # `--set name=2001-12-14` said only "Input should be a valid string"
+    assert _refused("paper-fig3", [f"name={value}"]) == (
+        f"--set name={value}: name: Input should be a valid string (YAML read it as {kind}; "
+        "put it in quotes to give a text)")
+
+
+def test_a_link_that_leads_nowhere_is_said_so(tmp_path):
+    # a loop of links was "no such file (and no preset of that name)"
+    (tmp_path / "a.yaml").symlink_to(tmp_path / "b.yaml")
+    (tmp_path / "b.yaml").symlink_to(tmp_path / "a.yaml")
+    with pytest.raises(ConfigError, match="a symbolic link that leads to no file"):
+        load_scenario(str(tmp_path / "a.yaml"))
+
+
+def test_a_list_option_the_swarm_engine_does_not_simulate_is_shown_as_the_file_says_it():
+    from trackjam.simulation.build import check_swarm_options
+
+    s = load_scenario("swarm-3", ["comms.failures=[{agent: 0, step: 1, mode: breakdown}]"])
+    with pytest.raises(ConfigError) as err:
+        check_swarm_options(s)
+    assert str(err.value).startswith("comms.failures: [{'agent': 0, 'step': 1, 'mode': 'breakdown'}] is not simulated")

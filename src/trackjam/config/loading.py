@@ -237,8 +237,25 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
                 out.append((".".join(str(p) for p in where), where))
             continue
         msg = _unknown_key(loc) if e["type"] == "extra_forbidden" else e["msg"].removeprefix("Value error, ")
+        if e["type"] == "string_type" and (kind := _yaml_kind(e["input"])):  # name: 2001-12-14, yes, 1e5, 0x10
+            msg += f" (YAML read it as {kind}; put it in quotes to give a text)"
         out.append((".".join(str(p) for p in loc), " ".join(msg.split())))
     return [(key, _length_message(msg, lengths[msg], inputs[msg]) if isinstance(msg, tuple) else msg) for key, msg in out]
+
+
+def _yaml_kind(value: Any) -> str | None:
+    """What YAML made of an unquoted text where a text was wanted, in words; None for the rest."""
+    import datetime
+
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, (int, float)):
+        return f"the number {value!r}"
+    if isinstance(value, (datetime.date, datetime.datetime)):
+        return f"the date {value.isoformat()}"
+    if value is None:
+        return "null (nothing)"
+    return None
 
 
 def _blamed(key: str, msg: str, overridden: dict[str, str]) -> str | None:
@@ -304,6 +321,9 @@ def _preset_data(name: str) -> dict:
 def _read_text(path: Path) -> str:
     """The file's text, read at most ``MAX_FILE_BYTES`` deep (``/dev/zero`` never ends)."""
     if not path.exists():
+        if path.is_symlink():  # a loop of links, or a link whose target is gone
+            raise ConfigError(f"{path}: a symbolic link that leads to no file (its target is missing, or the "
+                              "links form a loop)")
         close = _close_preset(str(path))
         hint = f"did you mean {close}?" if close else "see `trackjam presets`"
         raise ConfigError(f"{path}: no such file (and no preset of that name; {hint})")

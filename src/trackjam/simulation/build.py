@@ -308,7 +308,8 @@ def check_swarm_options(s: Scenario, overrides: list[str] | None = None) -> None
 
     for key, value, runs in _swarm_unsupported(s):
         if value != runs:
-            value = value.model_dump() if hasattr(value, "model_dump") else value
+            value = [v.model_dump() if hasattr(v, "model_dump") else v for v in value] if isinstance(value, list) \
+                else value.model_dump() if hasattr(value, "model_dump") else value
             shown = "null" if runs is None else repr(runs)  # as the scenario file would say it
             how = (f"the swarm engine's LMB filters use their own adaptive birth (leave it at {shown})"
                    if key in _OWN_BIRTH else f"the swarm engine runs with {shown}")
