@@ -172,6 +172,20 @@ def test_a_trial_whose_figure_is_mistyped_is_run_again_not_a_traceback(done, tmp
     assert (out / "summary.csv").read_bytes() == (done / "summary.csv").read_bytes()
 
 
+def test_a_link_to_no_file_at_a_trials_name_is_damaged_not_foreign(done, tmp_path):
+    # it was said to be "not a trial of this experiment" and left alone, then run and replaced
+    out = tmp_path / "e"
+    shutil.copytree(done, out)
+    path = out / "trials" / trial_filename(2, 1)
+    path.unlink()
+    path.symlink_to(tmp_path / "gone.parquet")
+    result = run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert result.ran == 1 and any("damaged" in n and path.name in n for n in result.notes)
+    assert not any("not trials of this experiment" in n for n in result.notes)
+    assert path.is_file() and not path.is_symlink()
+    assert (out / "summary.csv").read_bytes() == (done / "summary.csv").read_bytes()
+
+
 def _edit_figure(path: Path, key: str, value: float) -> None:
     table = pq.read_table(path)
     pq.write_table(table.set_column(table.column_names.index(key), key, pa.array([value])), path)

@@ -285,6 +285,9 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
                 pass
             continue
         key = parse_trial_filename(p.name)
+        if key is not None and key in scenarios and p.is_symlink() and not p.exists():
+            damaged.append(p.name)  # a link to no file: the trial is run and its file put in the link's place
+            continue
         if key is None or key not in scenarios or not p.is_file():
             foreign.append(p.name)
             continue
