@@ -404,6 +404,13 @@ def test_a_matplotlib_backend_matplotlib_does_not_know_is_one_line_before_any_wo
     assert list(tmp_path.iterdir()) == []
 
 
+def test_the_backends_taken_without_loading_matplotlib_are_matplotlibs_own():
+    backends = pytest.importorskip("matplotlib.backends")
+    from trackjam.config.limits import MATPLOTLIB_BACKENDS
+
+    assert MATPLOTLIB_BACKENDS == set(backends.backend_registry.list_builtin())
+
+
 @pytest.mark.parametrize("variable, value", [("NUMBA_OPT", "2"), ("NUMBA_DISABLE_JIT", "0"), ("NUMBA_OPT", "max"),
                                              ("MPLBACKEND", "Agg"), ("MPLBACKEND", "svg")])
 def test_a_numba_variable_numba_reads_is_taken(variable, value):

@@ -628,8 +628,8 @@ def test_a_set_item_with_an_empty_key_is_shown_whole(item):
 def test_a_text_yaml_reads_as_something_else_says_what_it_read_and_how_to_quote(value, kind):
     # `--set name=2001-12-14` said only "Input should be a valid string"
     assert _refused("paper-fig3", [f"name={value}"]) == (
-        f"--set name={value}: name: Input should be a valid string (YAML read it as {kind}; "
-        "put it in quotes to give a text)")
+        f"--set name={value}: name: Input should be a valid string (read as {kind}; a text needs quotes: "
+        "name: \"...\" in a file, --set 'name=\"...\"' on the command line)")
 
 
 def test_a_link_that_leads_nowhere_is_said_so(tmp_path):

@@ -317,3 +317,10 @@ def test_two_estimates_of_one_covariance_fuse_to_their_midpoint_in_either_order(
     np.testing.assert_allclose(ba.mean, ab.mean)
     np.testing.assert_allclose(ab.cov, C)
     assert ab.weights.tolist() == [0.5, 0.5]
+
+
+def test_a_ragged_corner_and_a_complex_number_in_a_list_are_named():
+    _raises(TypeError, "low: expected numbers in a regular array", chase, _line([1.0]), [[0.0, 0, 0]], 1.0,
+            [[0, 0], [0]], 100.0)
+    _raises(TypeError, "aim: expected numbers", detection_probability, X, U,
+            np.array([1.0, np.complex64(2 + 1j), 3.0], dtype=object), 1.12, ANT)

@@ -57,7 +57,7 @@ def corners(low, high, *, scalars: bool = False) -> tuple[np.ndarray, np.ndarray
     """An area's corners ``low`` and ``high``: finite 3-vectors (or, with ``scalars``, numbers
     that stand for all three), low below high on every axis."""
     if scalars:
-        low, high = (np.full(3, real(k, v)) if np.ndim(v) == 0 else v for k, v in (("low", low), ("high", high)))
+        low, high = (np.full(3, real(k, a)) if (a := numeric(k, v)).ndim == 0 else a for k, v in (("low", low), ("high", high)))
     lo, hi = vector("low", low), vector("high", high)
     if np.any(lo >= hi):
         raise ValueError(f"low, high: the area's low corner must lie below its high one, got {lo.tolist()} and {hi.tolist()}")
@@ -77,10 +77,9 @@ def numeric(name: str, value) -> np.ndarray:
         try:
             if a.dtype.kind != "O":
                 raise TypeError
-            b = a.astype(float)
-            if b.size and any(isinstance(v, (bool, np.bool_, str, bytes, complex)) for v in a.ravel()):
+            if any(isinstance(v, (bool, np.bool_, str, bytes, complex, np.complexfloating)) for v in a.ravel()):
                 raise TypeError
-            return b
+            return a.astype(float)
         except (TypeError, ValueError):
             raise TypeError(f"{name}: expected numbers, got {type(value).__name__} {_shown(value)}") from None
     return a.astype(float, copy=False)

@@ -278,15 +278,6 @@ def _step_progress(total: int, label: str):
     return line, lambda: None
 
 
-def _identity(path: Path) -> tuple[int, int, int] | None:
-    """Which file stands at ``path`` (device, inode, modification time), or None: a rename puts another there."""
-    try:
-        st = path.stat()
-    except OSError:
-        return None
-    return st.st_dev, st.st_ino, st.st_mtime_ns
-
-
 def _warm_up(s) -> None:
     """Load (or, on a first run, compile) the scenario's kernels before the timed run, saying so
     (numba is silent). The line cannot know which it will be: it said "compiling" every time."""
@@ -328,7 +319,7 @@ def run(
     from rich.table import Table
 
     from trackjam.simulation.loop import simulate
-    from trackjam.simulation.output import write_run
+    from trackjam.simulation.output import WROTE, write_run
 
     _warm_up(s)
     cb, close = _step_progress(s.steps, s.name)
@@ -336,18 +327,21 @@ def run(
         result = simulate(s, progress=cb)
     finally:
         close()
-    summary = out / "summary.json"
-    before, existed = _identity(summary), out.is_dir()
+    from trackjam.errors import printable
+
+    existed = out.is_dir()
+
+    def waiting() -> None:
+        typer.echo(f"trackjam: another run is writing into {printable(str(out))}; waiting for it to finish", err=True)
+
     try:
-        files = write_run(result, out, figures=figures)
+        files = write_run(result, out, figures=figures, on_wait=waiting)
     except (KeyboardInterrupt, SystemExit) as err:  # one line, saying what the folder holds now
         if isinstance(err, SystemExit) and err.code != TERMINATED:
             raise
-        from trackjam.errors import printable
-
         global _said_interrupted, _said_terminated
         how = "interrupted" if isinstance(err, KeyboardInterrupt) else "terminated"
-        if _identity(summary) != before:  # it came while the last renames held it back: the run is there
+        if getattr(err, WROTE, False):  # it came while the last renames held it back: the run is there
             typer.echo(f"trackjam: {how} after writing {printable(str(out))} in full", err=True)
         elif existed:  # else the write removed the folders it made
             typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing in it was changed", err=True)

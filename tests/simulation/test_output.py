@@ -183,6 +183,60 @@ def test_a_second_run_into_one_folder_waits_for_the_first_and_leaves_its_staging
         ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
 
 
+def test_a_run_waiting_for_a_write_that_fails_and_removes_its_folder_writes_its_own(tmp_path, small_result):
+    # the first write's cleanup ran after it let go of the lock: the waiting run found the folder
+    # half removed (a false "holds other files", "No such file or directory", a traceback)
+    import fcntl
+    import os
+    import threading
+    import time
+
+    from trackjam.simulation.output import write_run
+
+    out = tmp_path / "run"
+    out.mkdir()  # made by the first run, which holds it
+    fd = os.open(out, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    waited, errors = [], []
+    second = threading.Thread(target=lambda: _catch(errors, write_run, small_result, out, figures=False,
+                                                    on_wait=lambda: waited.append(1)))
+    try:
+        second.start()
+        time.sleep(1.0)
+        assert second.is_alive() and waited == [1]
+        out.rmdir()  # the first run failed: it removes the folder it made, still holding the lock
+    finally:
+        os.close(fd)
+    second.join(60)
+    assert not second.is_alive() and errors == []
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
+
+
+def test_a_ctrl_c_while_waiting_for_the_folder_writes_nothing_and_is_not_said_written(tmp_path, small_result):
+    import fcntl
+    import os
+
+    from trackjam.simulation.output import WROTE, write_run
+
+    out = tmp_path / "run"
+    write_run(small_result, out, figures=False)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    fd = os.open(out, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+
+    def ctrl_c():
+        raise KeyboardInterrupt
+
+    try:
+        with pytest.raises(KeyboardInterrupt) as err:
+            write_run(small_result, out, figures=False, on_wait=ctrl_c)
+    finally:
+        os.close(fd)
+    assert not getattr(err.value, WROTE, False)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
 def _catch(errors, fn, *args, **kwargs):
     try:
         fn(*args, **kwargs)
@@ -207,7 +261,7 @@ def test_a_run_of_another_scenario_written_meanwhile_is_kept_and_said(tmp_path, 
             check(*args, **kwargs)
 
     monkeypatch.setattr(output, "check_out_dir", first_before_the_other_run)
-    with pytest.raises(ConfigError, match=r"holds another scenario's run.*another run wrote there while this one ran"):
+    with pytest.raises(ConfigError, match=r"holds another scenario's run.*written there while this run ran; nothing of"):
         output.write_run(small_result, out, figures=False)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 

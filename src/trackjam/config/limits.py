@@ -316,15 +316,23 @@ def check_environment() -> None:
         _matplotlib_backend()
 
 
+# matplotlib's own backends (matplotlib.rcsetup); another name is checked by loading matplotlib
+MATPLOTLIB_BACKENDS = frozenset({
+    "gtk3agg", "gtk3cairo", "gtk4agg", "gtk4cairo", "macosx", "nbagg", "notebook", "qtagg", "qtcairo", "qt5agg",
+    "qt5cairo", "tkagg", "tkcairo", "webagg", "wx", "wxagg", "wxcairo", "agg", "cairo", "pdf", "pgf", "ps", "svg",
+    "template",
+})
+
+
 def _matplotlib_backend() -> None:
     """``MPLBACKEND``, read as matplotlib reads it when it loads (paid only when it is set): a
     name it does not know made ``import matplotlib`` raise, so a run simulated every step and
     then failed with a traceback where it draws its figure, writing nothing."""
     import sys
 
-    if "matplotlib" in sys.modules:
-        return
     value = os.environ["MPLBACKEND"]
+    if "matplotlib" in sys.modules or value.lower() in MATPLOTLIB_BACKENDS or value.startswith("module://"):
+        return  # known without loading matplotlib (0.25 s), which CI's common MPLBACKEND=Agg would pay on every command
     try:
         import matplotlib  # noqa: F401
     except ValueError:

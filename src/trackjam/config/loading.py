@@ -238,13 +238,16 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
             continue
         msg = _unknown_key(loc) if e["type"] == "extra_forbidden" else e["msg"].removeprefix("Value error, ")
         if e["type"] == "string_type" and (kind := _yaml_kind(e["input"])):  # name: 2001-12-14, yes, 1e5, 0x10
-            msg += f" (YAML read it as {kind}; put it in quotes to give a text)"
+            key = ".".join(str(p) for p in loc)
+            msg += (f" (read as {kind}; a text needs quotes: {key}: \"...\" in a file, --set '{key}=\"...\"' "
+                    "on the command line)" if kind != "null" else " (read as null: no value was given)")
         out.append((".".join(str(p) for p in loc), " ".join(msg.split())))
     return [(key, _length_message(msg, lengths[msg], inputs[msg]) if isinstance(msg, tuple) else msg) for key, msg in out]
 
 
 def _yaml_kind(value: Any) -> str | None:
-    """What YAML made of an unquoted text where a text was wanted, in words; None for the rest."""
+    """What the file's reader (YAML or TOML) or a keyword made of a value where a text was wanted,
+    in words; None for the rest."""
     import datetime
 
     if isinstance(value, bool):
@@ -254,7 +257,7 @@ def _yaml_kind(value: Any) -> str | None:
     if isinstance(value, (datetime.date, datetime.datetime)):
         return f"the date {value.isoformat()}"
     if value is None:
-        return "null (nothing)"
+        return "null"
     return None
 
 

@@ -71,7 +71,8 @@ CLUTTER_RATE_MAX = 1000.0  # the configuration's bound on clutter.rate
 
 def _scan_arguments(rng, x, u, p_d, noise_std, clutter_rate, max_range) -> None:
     if not isinstance(rng, (np.random.Generator, np.random.RandomState)):
-        raise TypeError(f"rng: expected a numpy Generator (numpy.random.default_rng(seed)), got {type(rng).__name__}")
+        raise TypeError(f"rng: expected a numpy Generator (numpy.random.default_rng(seed)) or RandomState, "
+                        f"got {type(rng).__name__}")
     if x is not None:
         points("x", x, (3, 6), ndim=1, position_only=True)
     points("u", u, ndim=1)

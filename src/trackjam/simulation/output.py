@@ -146,26 +146,39 @@ def _put_back(previous: dict) -> None:
 
 
 @contextmanager
-def _folder_locked(out: Path):
+def _folder_locked(out: Path, on_wait: Callable[[], None] | None = None):
     """Hold an exclusive lock (``flock``) on the folder ``out`` while a run's files are written
     into it, so that two runs writing into one folder take turns: the second waits (a few
-    seconds at most, and Ctrl-C ends the wait) and then finds the first one's run, which it
-    replaces whole if it is of the same scenario. Without it the second removed the first's
-    staging folder as a leftover, and the first failed. A folder that cannot be opened or a file
-    system without locks (some network mounts) goes unlocked, as before."""
+    seconds at most, and Ctrl-C ends the wait; ``on_wait`` is called when it starts) and then
+    finds the first one's run, which it replaces whole if it is of the same scenario. Without
+    it the second removed the first's staging folder as a leftover, and the first failed.
+    Yields whether the lock is on the folder that is at ``out`` now: False when it was removed
+    (or replaced) meanwhile, by a failed write that had made it. A folder that cannot be opened
+    or a file system without locks (some network mounts) goes unlocked, as before (True)."""
     try:
         fd = os.open(out, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)) if fcntl is not None else None
     except OSError:
         fd = None
     if fd is None:
-        yield
+        yield True
         return
     try:
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError:
-            pass
-        yield
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                if on_wait is not None:
+                    on_wait()
+                fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:  # no locks on this file system
+            yield True
+            return
+        try:
+            now, held = os.stat(out), os.fstat(fd)
+        except OSError:  # removed meanwhile
+            yield False
+            return
+        yield (now.st_dev, now.st_ino) == (held.st_dev, held.st_ino)
     finally:
         os.close(fd)  # and with it the lock
 
@@ -233,9 +246,11 @@ def _stage(result, stage: Path, out: Path, figures: bool) -> list[str]:
     return names
 
 
-def write_run(result, out: Path, figures: bool = True) -> list[Path]:
+def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], None] | None = None) -> list[Path]:
     """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``, whole or not at all (the
-    module docstring); return the files."""
+    module docstring); return the files. ``on_wait`` is called once if another run is writing
+    into ``out`` and this one waits for it. A Ctrl-C or SIGTERM held back during the renames is
+    raised once they are done, marked with the attribute ``trackjam_wrote`` (:data:`WROTE`)."""
     # checked before anything is written: a text result was an AttributeError, None or 5 pathlib's
     # TypeError, "" the current folder, and figures="no" drew the figures
     if not hasattr(result, "scenario") or not (hasattr(result, "steps") or hasattr(result, "tables")):
@@ -251,36 +266,54 @@ def write_run(result, out: Path, figures: bool = True) -> list[Path]:
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)
     check_out_dir(out, result.scenario)
-    made: list[Path] = []
-    stage = None
-    try:
+    for _ in range(LOCK_TRIES):
         try:
             made = _make_folder(out)
         except OSError as err:
             raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
-        with _folder_locked(out):
-            if not made:  # checked again under the lock: another run may have written here meanwhile
+        with _folder_locked(out, on_wait) as held:
+            if held:
+                return _write_held(result, out, figures, made)
+        # the folder was removed while this run waited for it (a write that had made it failed): again
+    raise OutputError(f"--out {out}: the folder was removed {LOCK_TRIES} times while this run waited to write into it")
+
+
+LOCK_TRIES = 20
+WROTE = "trackjam_wrote"  # set on a Ctrl-C or SIGTERM that came once the run's files were all in place
+
+
+def _write_held(result, out: Path, figures: bool, made: list[Path]) -> list[Path]:
+    """The write of :func:`write_run`, holding the folder's lock: the folder checked again (another
+    run may have written there meanwhile), the leftovers of killed writes removed (no live
+    writer's staging folder is among them), the files staged and renamed into place; on any
+    failure the staging folder and the folders this write made are removed, still under the lock."""
+    stage = None
+    renamed = False
+    try:
+        try:
+            check_out_dir(out, result.scenario)
+        except ConfigError as err:
+            raise ConfigError(f"{err} (written there while this run ran; nothing of this one was written)") from None
+        _remove_leftovers(out)
+        try:
+            stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
+        except OSError as err:
+            raise OutputError(f"--out {out}: cannot write in the folder ({err.strerror or err})") from None
+        names = _stage(result, stage, out, figures)
+        with _signals_held():
+            for k, name in enumerate(names):  # summary.json last
                 try:
-                    check_out_dir(out, result.scenario)
-                except ConfigError as err:
-                    raise ConfigError(f"{err} (another run wrote there while this one ran; nothing of this "
-                                      "one was written)") from None
-            _remove_leftovers(out)  # under the lock: a live writer's staging folder is never among them
-            try:
-                stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
-            except OSError as err:
-                raise OutputError(f"--out {out}: cannot write in the folder ({err.strerror or err})") from None
-            names = _stage(result, stage, out, figures)
-            with _signals_held():
-                for k, name in enumerate(names):  # summary.json last
-                    try:
-                        os.replace(stage / name, out / name)
-                    except OSError as err:  # a name taken since the check (a folder), a file system's refusal
-                        raise OutputError(
-                            f"{out / name}: cannot be replaced ({err.strerror or err}); "
-                            f"{k} of the run's {len(names)} files were moved into {out} before it") from None
-                shutil.rmtree(stage, ignore_errors=True)
-    except BaseException:
+                    os.replace(stage / name, out / name)
+                except OSError as err:  # a name taken since the check (a folder), a file system's refusal
+                    raise OutputError(
+                        f"{out / name}: cannot be replaced ({err.strerror or err}); "
+                        f"{k} of the run's {len(names)} files were moved into {out} before it") from None
+            renamed = True
+            shutil.rmtree(stage, ignore_errors=True)
+    except BaseException as err:
+        if renamed:  # a signal held back during the renames: the run is there, whole
+            setattr(err, WROTE, True)
+            raise
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
         _unmake(made)
