@@ -300,3 +300,33 @@ def test_rollout_reads_a_generator_of_seeds_as_it_goes():
                                                     "control.solver=greedy"]))
     rows = rollout(env, random_policy(env, 0), itertools.islice(itertools.count(5), 2))
     assert [r["seed"] for r in rows] == [5, 6]
+
+
+@pytest.mark.parametrize("preset", ["paper-fig3", "swarm-3"])
+def test_a_step_that_ends_half_done_leaves_the_run_broken_until_reset(preset, monkeypatch):
+    # stepping on after a solver raised mid-step gave a run with a step missing (t = [2, 3]),
+    # which write_run wrote without a word
+    from trackjam.simulation.engine import Simulation
+    from trackjam.simulation.swarm import SwarmSimulation
+
+    s = trackjam.load_scenario(preset, ["filter.particles=100", "filter.birth_particles=20", "steps=3"])
+    sim = Simulation(s) if preset == "paper-fig3" else SwarmSimulation(s)
+    target = sim.team if preset == "paper-fig3" else sim
+    name = "decide" if preset == "paper-fig3" else "_aims"
+    original = getattr(target, name)
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(target, name, boom)
+    with pytest.raises(RuntimeError, match="boom"):
+        sim.step()
+    monkeypatch.setattr(target, name, original)
+    for call in (sim.step, sim.result):
+        with pytest.raises(RuntimeError, match=r"^step 1 ended half done \(RuntimeError: boom\): the run cannot go on; "
+                                               r"call reset\(\)$"):
+            call()
+    sim.reset()
+    while not sim.done:
+        sim.step()
+    assert list(sim.result().steps["t"] if preset == "paper-fig3" else sim.result().tables["steps"]["t"]) == [1, 2, 3]

@@ -83,3 +83,29 @@ def test_a_registered_function_is_a_solver(fig3_problem):
             register("all-off-test")(all_off)
     finally:
         del SOLVERS["all-off-test"]
+
+
+@pytest.mark.parametrize("name, fn, error, words", [
+    (["a"], lambda p, r, o: None, ValueError, "register: a solver's name must be a non-empty text"),
+    ("", lambda p, r, o: None, ValueError, "register: a solver's name must be a non-empty text"),
+    ("five-test", 5, TypeError, "register('five-test'): expected a function"),
+])
+def test_register_refuses_what_is_not_a_named_function(name, fn, error, words):
+    # all were taken, and failed at a run's first step (or as "unhashable type")
+    from trackjam.control.solve import SOLVERS, register
+
+    before = dict(SOLVERS)
+    with pytest.raises(error) as err:
+        register(name)(fn)
+    assert str(err.value).startswith(words) and SOLVERS == before
+
+
+def test_a_solver_that_returns_no_solution_is_named(fig3_problem):
+    from trackjam.control.solve import SOLVERS, register
+
+    register("none-test")(lambda problem, rngs, options: None)
+    try:
+        with pytest.raises(TypeError, match="^solver 'none-test' returned NoneType, not a Solution$"):
+            solve(fig3_problem, "none-test", [])
+    finally:
+        del SOLVERS["none-test"]

@@ -204,3 +204,30 @@ def test_an_experiment_on_fig3s_start_still_refuses_an_area_without_it():
 
     with pytest.raises(ConfigError, match=r"--set area.high=\[25,25,25\]: agents.initial\[0\]"):
         _plan(get_experiment("holding"), 1, 2, 0, ["area.high=[25,25,25]"])
+
+
+@pytest.mark.parametrize("changed, words", [
+    ({"configurations": ()}, "configurations must be a non-empty tuple"),
+    ({"configurations": "dup"}, "configuration indices must be distinct whole numbers >= 1, got [1, 1]"),
+    ({"configurations": "zero"}, "configuration indices must be distinct whole numbers >= 1, got [0]"),
+    ({"figure": "../../escape.png"}, "figure must be a file name in --out"),  # it was written outside --out
+    ({"figure": "fig"}, "figure must be a file name in --out"),  # matplotlib failed once every trial had run
+    ({"figure": "summary.csv"}, "figure must be a file name in --out"),
+    ({"trials": "bogus"}, "trials must be one of"),
+    ({"pairs": ((1, 7, "x"),)}, "pairs [(1, 7, 'x')] name configurations it does not have"),
+    ({"trial": 5}, "trial must be a function of a scenario"),
+])
+def test_a_hand_built_experiment_is_checked_when_it_is_made(changed, words):
+    # two configurations of one index shared one trial file and one summary row, silently
+    from trackjam.experiments.experiment import Configuration, Experiment
+
+    configurations = {"dup": (Configuration(1, "a", {"antenna.opening_angle_deg": 60}),
+                              Configuration(1, "b", {"antenna.opening_angle_deg": 120})),
+                      "zero": (Configuration(0, "a"),)}
+    fields = dict(name="mine", description="", configurations=(Configuration(1, "a"), Configuration(2, "b")),
+                  figure="mine.png") | changed
+    if isinstance(fields["configurations"], str):
+        fields["configurations"] = configurations[fields["configurations"]]
+    with pytest.raises(ValueError) as err:
+        Experiment(**fields)
+    assert words in str(err.value)

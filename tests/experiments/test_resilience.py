@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -452,3 +453,19 @@ def test_the_fingerprint_counts_only_what_differs_from_the_defaults():
     assert scenario_digest(s) == scenario_digest(load_scenario("paper-fig3", ["control.lead=0"]))
     assert scenario_digest(s) != scenario_digest(load_scenario("paper-fig3", ["control.lead=0.5"]))
     assert scenario_digest(s) != scenario_digest(load_scenario("paper-fig3", steps=29))
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"trials": 10**9}, "past the cap of 20,000"),  # it built scenarios until the memory ran out
+    ({"trials": -1}, "--trials must be a positive integer"),  # KeyError: (1, 0)
+    ({"seed": -5}, "--seed -5: must be an integer in [0, 2^63 - 1]"),
+    ({"overrides": [1]}, "overrides must be --set items"),  # AttributeError: 'int' object has no attribute 'partition'
+])
+def test_summarising_a_folder_holds_its_parameters_to_a_sweeps_bounds(fresh, tmp_path, change, words):
+    out = tmp_path / "exp"
+    shutil.copytree(fresh, out)
+    meta = out / "experiment.json"
+    meta.write_text(json.dumps({**json.loads(meta.read_text()), **change}))
+    with pytest.raises(ConfigError) as err:
+        summarise_folder(out)
+    assert words in str(err.value) and str(err.value).startswith(f"{meta}: ")

@@ -53,9 +53,14 @@ SOLVERS: dict[str, Solver] = {}
 
 
 def register(name: str) -> Callable[[Solver], Solver]:
-    """Register ``fn`` as the solver called ``name``."""
+    """Register ``fn`` as the solver called ``name`` (a non-empty text, not taken)."""
+    if not isinstance(name, str) or not name.strip():  # a list was "unhashable type", 5 and "" were taken
+        raise ValueError(f"register: a solver's name must be a non-empty text, got {name!r:.40}")
 
     def add(fn: Solver) -> Solver:
+        if not callable(fn):  # 5 was taken, and failed at the first step with "'int' object is not callable"
+            raise TypeError(f"register({name!r}): expected a function (problem, rngs, options) -> Solution, "
+                            f"got {type(fn).__name__}")
         if name in SOLVERS:
             raise ValueError(f"solver {name!r} is registered twice")
         SOLVERS[name] = fn
@@ -95,4 +100,7 @@ def solve(problem: Problem, solver: str, rngs: list[np.random.Generator], sample
         raise ValueError(f"unknown solver {solver!r}; expected one of {', '.join(SOLVERS)}")
     options = SolverOptions(samples=samples, iterations=iterations, neighbours=neighbours, threads=threads,
                             time_limit_s=time_limit_s, node_limit=node_limit)
-    return SOLVERS[solver](problem, rngs, options)
+    solution = SOLVERS[solver](problem, rngs, options)
+    if not isinstance(solution, Solution):  # None failed later, deep in the team, with an AttributeError
+        raise TypeError(f"solver {solver!r} returned {type(solution).__name__}, not a Solution")
+    return solution

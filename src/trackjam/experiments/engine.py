@@ -551,10 +551,17 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     wrong = [k for k, kind in kinds.items() if not isinstance(params.get(k), kind) or isinstance(params.get(k), bool)]
     if wrong:
         raise ConfigError(f"{meta}: {', '.join(wrong)} missing or mistyped; not an experiment's parameters")
+    if not all(isinstance(o, str) for o in params["overrides"]):
+        raise ConfigError(f"{meta}: overrides must be --set items (texts); not an experiment's parameters")
+    try:  # the bounds run_experiment holds them to: trials 10^9 built scenarios until the memory ran out
+        _check_arguments(params["trials"], params["steps"], params["seed"], None, None)
+        experiment = get_experiment(params["experiment"], params.get("grid"))
+        check_trial_runs(params["trials"], len(experiment.configurations))
+    except ConfigError as err:
+        raise ConfigError(f"{meta}: {err}; not the parameters of a sweep trackjam runs") from None
     _check_trials_folder(out, str(out))  # reading it back removes stale temporary files there
     if not (out / "trials").is_dir():
         raise ConfigError(f"{out}: no trials/ folder here, nothing to summarise")
-    experiment = get_experiment(params["experiment"], params.get("grid"))
     scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
     found, notes = _read_back(out / "trials", experiment, scenarios)
     return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)

@@ -85,6 +85,38 @@ class Experiment:
     pairs: tuple[Pair, ...] = ()  # paired comparisons (a, b, label) written to paired.csv
 
     def __post_init__(self) -> None:
+        # a hand-built experiment (README, Extending trackjam): two configurations of one index
+        # shared one trial file and one summary row, a figure "../x.png" was written outside
+        # --out, "fig" failed in matplotlib once every trial had run
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError(f"experiment name: expected a non-empty text, got {self.name!r:.40}")
+        if not isinstance(self.configurations, tuple) or not self.configurations or not all(
+                isinstance(c, Configuration) for c in self.configurations):
+            raise ValueError(f"experiment {self.name}: configurations must be a non-empty tuple of Configuration")
+        indices = [c.index for c in self.configurations]
+        if any(isinstance(i, bool) or not isinstance(i, int) or i < 1 for i in indices) or len(set(indices)) < len(indices):
+            raise ValueError(f"experiment {self.name}: configuration indices must be distinct whole numbers >= 1, "
+                             f"got {indices}")
+        if any(not isinstance(c.settings, dict) for c in self.configurations):
+            raise ValueError(f"experiment {self.name}: a configuration's settings must be a dict of dotted keys")
+        figure = self.figure
+        if (not isinstance(figure, str) or figure != figure.strip() or "/" in figure or "\\" in figure
+                or figure.startswith(".") or not figure.lower().endswith((".png", ".pdf", ".svg"))
+                or figure.lower() in {"summary.csv", "timing.csv", "paired.csv"}):
+            raise ValueError(f"experiment {self.name}: figure must be a file name in --out ending in .png, .pdf or "
+                             f".svg, got {figure!r:.60}")
+        if self.trials not in (DRAW, SEED, SWARM):
+            raise ValueError(f"experiment {self.name}: trials must be one of {DRAW!r}, {SEED!r}, {SWARM!r}, "
+                             f"got {self.trials!r:.40}")
+        if not isinstance(self.base_settings, dict):
+            raise ValueError(f"experiment {self.name}: base_settings must be a dict of dotted keys")
+        if self.trial is not None and not callable(self.trial):
+            raise ValueError(f"experiment {self.name}: trial must be a function of a scenario, got "
+                             f"{type(self.trial).__name__}")
+        unknown_pairs = [p for p in self.pairs if p[0] not in indices or p[1] not in indices]
+        if unknown_pairs:
+            raise ValueError(f"experiment {self.name}: pairs {unknown_pairs} name configurations it does not have "
+                             f"({indices})")
         stems = {m[0] for m in self.metrics + self.counts}
         unknown = [stem for p in self.panels for stem, _ in p.series if stem not in stems]
         if unknown:

@@ -119,17 +119,35 @@ class Simulation:
         self.log = RunLog(n_agents=len(agents), gate=c.gate)
         self.t = 0
         self.follow = 0  # oracle.follow_up: steps left on which the team is told the truth
+        self.broken: str | None = None  # what ended a step half done (an error, a Ctrl-C); reset() clears it
 
     @property
     def done(self) -> bool:
         return self.t >= self.c.steps
 
+    def _whole(self) -> None:
+        if self.broken is not None:
+            raise RuntimeError(f"step {self.t} ended half done ({self.broken}): the run cannot go on; call reset()")
+
     def step(self, actions: tuple[np.ndarray, np.ndarray] | None = None) -> StepRecord:
+        """One step (Algorithm 1); ``actions`` (moves, levels) replace the team's decisions. A step
+        that ends half done (its solver raised, a Ctrl-C) leaves the run broken: the truth and the
+        filters had moved on without a log row, so ``step`` and ``result`` refuse until ``reset``
+        (stepping on had given a run with a step missing)."""
+        self._whole()
         if self.done:
             raise RuntimeError(f"the run has ended (step {self.t} of {self.c.steps}); call reset()")
         c, team, truth = self.c, self.team, self.truth
         if actions is not None:  # refused before the step changes anything
             actions = checked_actions(actions, team.positions, c.displacements, len(c.antenna.levels_w), c.low, c.high)
+        try:
+            return self._step(actions)
+        except BaseException as err:
+            self.broken = type(err).__name__ + (f": {str(err).splitlines()[0][:80]}" if str(err) else "")
+            raise
+
+    def _step(self, actions) -> StepRecord:
+        c, team, truth = self.c, self.team, self.truth
         t0 = time.perf_counter()
         self.t = t = self.t + 1
         truth.step(t)
@@ -250,6 +268,7 @@ class Simulation:
 
     def result(self) -> RunResult:
         """The logs so far, as column arrays, and their summary."""
+        self._whole()
         if not self.log.steps:  # no step logged (none run, or the first interrupted): a KeyError from the summary
             raise RuntimeError("result() before the first step: call step() first")
         c = self.c

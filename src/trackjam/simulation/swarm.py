@@ -206,6 +206,7 @@ class SwarmSimulation:
         self.memory = SearchMemory(b.team.accel_var) if b.team.searching else None
         self.log = SwarmLog([str(i) for i in c.ids])
         self.t = 0
+        self.broken: str | None = None  # what ended a step half done; reset() clears it (engine.Simulation)
 
     @property
     def done(self) -> bool:
@@ -215,10 +216,25 @@ class SwarmSimulation:
     def positions(self) -> np.ndarray:
         return np.array([a.position for a in self.agents])
 
+    def _whole(self) -> None:
+        if self.broken is not None:
+            raise RuntimeError(f"step {self.t} ended half done ({self.broken}): the run cannot go on; call reset()")
+
     def step(self) -> SwarmRecord:
+        """One step; one that ends half done leaves the run broken until ``reset`` (as
+        :meth:`trackjam.simulation.engine.Simulation.step`)."""
+        self._whole()
         b = self.c.base
         if self.done:
             raise RuntimeError(f"the run has ended (step {self.t} of {b.steps}); call reset()")
+        try:
+            return self._step()
+        except BaseException as err:
+            self.broken = type(err).__name__ + (f": {str(err).splitlines()[0][:80]}" if str(err) else "")
+            raise
+
+    def _step(self) -> SwarmRecord:
+        b = self.c.base
         t0 = time.perf_counter()
         self.t = t = self.t + 1
         truth = self.truth
@@ -363,6 +379,7 @@ class SwarmSimulation:
 
     def result(self) -> SwarmResult:
         """The logs so far, as column arrays, and their summary."""
+        self._whole()
         if not self.log.rows["steps"]:  # no step logged (none run, or the first interrupted): a KeyError from the summary
             raise RuntimeError("result() before the first step: call step() first")
         b = self.c.base
