@@ -40,8 +40,10 @@ def test_the_largest_penalty_keeps_the_reward_finite_where_1e308_made_it_minus_i
 @pytest.mark.parametrize(
     "path, error, words",
     [
-        (None, TypeError, "expected a file path, got NoneType"),
-        (5, TypeError, "expected a file path, got int"),
+        (None, TypeError, "expected a file path as text, got NoneType"),
+        (5, TypeError, "expected a file path as text, got int"),
+        (b"/tmp/r.html", TypeError, "expected a file path as text, got bytes"),
+        ("{tmp}/r\x00.html", ValueError, "holds a NUL character"),  # render() failed in tempfile
         ("{tmp}", ValueError, "is a folder, not a file"),
         ("{tmp}/missing/replay.html", ValueError, "missing is not an existing folder"),
     ],

@@ -469,3 +469,27 @@ def test_summarising_a_folder_holds_its_parameters_to_a_sweeps_bounds(fresh, tmp
     with pytest.raises(ConfigError) as err:
         summarise_folder(out)
     assert words in str(err.value) and str(err.value).startswith(f"{meta}: ")
+
+
+@pytest.mark.parametrize("kwargs, error, words", [
+    ({"name": None}, TypeError, "name: expected an experiment's name"),
+    ({"trial": 5}, TypeError, "trial: expected a function of a scenario"),
+    ({"out": 5}, TypeError, "out: expected a folder's path as text"),
+    ({"out": "a\x00b"}, TypeError, "out: expected a folder's path as text"),
+])
+def test_run_experiment_names_an_argument_of_the_wrong_kind(tmp_path, kwargs, error, words):
+    args = {"name": "constraints", "trials": 1, "steps": 2, "workers": 1, "out": tmp_path / "e"} | kwargs
+    name = args.pop("name")
+    with pytest.raises(error) as err:
+        run_experiment(name, **args)
+    assert str(err.value).startswith(words)
+    assert not (tmp_path / "e").exists()
+
+
+def test_run_experiment_takes_numpy_integers(tmp_path):
+    import numpy as np
+
+    # --seed np.int64(1) was "--seed 1: must be an integer"
+    r = run_experiment("constraints", trials=np.int64(1), steps=np.int32(2), seed=np.int64(1), workers=1,
+                       out=tmp_path / "e", progress="none")
+    assert r.ran == 2 and json.loads((tmp_path / "e" / "experiment.json").read_text())["seed"] == 1

@@ -86,6 +86,9 @@ def test_the_figures_read_only_columns_a_real_run_logs_and_the_fake_run_copies_t
     replay_figure(steps, agents, figure_settings(scenario))
     assert steps.read - {"mode"} <= set(STEP_COLUMNS) <= set(steps)
     assert agents.read <= set(AGENT_COLUMNS) <= set(agents)
+    from trackjam.viz.figure import READ_AGENTS, READ_STEPS  # what check_logs asks of the logs
+
+    assert set(READ_STEPS) == set(STEP_COLUMNS) and set(READ_AGENTS) == set(AGENT_COLUMNS)
     fake_steps, fake_agents, _ = fake_run()
     for real, fake in ((steps, fake_steps), (agents, fake_agents)):
         for col in fake:  # same kind of values: bool, integer or float
@@ -249,3 +252,46 @@ def test_panels_g_h_draw_one_cone_per_transmitting_agent_with_the_cones_geometry
             along = (rim - u) @ axis
             radial = np.linalg.norm((rim - u) - along[:, None] * axis, axis=1)
             assert np.allclose(along, h) and np.allclose(radial, h * np.tan(half))
+
+
+def _odd(kind):
+    steps, agents, scenario = fake_run()
+    steps, agents, fs = dict(steps), dict(agents), figure_settings(scenario)
+    if kind == "empty":
+        steps = {k: np.asarray(v)[:0] for k, v in steps.items()}
+    elif kind == "missing":
+        del steps["ospa"]
+    elif kind == "one step of agents":
+        agents = {k: np.asarray(v)[np.asarray(agents["t"]) == 1] for k, v in agents.items()}
+    elif kind == "unordered":
+        steps = {k: np.asarray(v)[::-1] for k, v in steps.items()}
+    elif kind == "level 99":
+        agents["level_index"] = np.full(len(agents["t"]), 99)
+    elif kind == "ragged":
+        steps["ospa"] = np.asarray(steps["ospa"])[:-1]
+    return steps, agents, fs
+
+
+@pytest.mark.parametrize("kind, words", [
+    ("empty", "steps: t must run 1, 2, ... with one row per step"),  # numpy's "zero-size array" before
+    ("missing", "steps: not a run's steps log: missing ospa"),  # KeyError: 'ospa'
+    ("one step of agents", "agents: expected one row per step"),  # a 3-step run drawn with one step of agents
+    ("unordered", "steps: t must run 1, 2, ..."),
+    ("level 99", "agents: level_index must lie in 0..3"),  # the replay's IndexError
+    ("ragged", "steps: its columns must be one-dimensional and of one length"),
+])
+def test_the_figure_and_the_replay_refuse_logs_that_are_not_one_runs(tmp_path, kind, words):
+    from trackjam.viz.replay import write_replay
+
+    steps, agents, fs = _odd(kind)
+    for draw in (plot_run, write_replay):
+        with pytest.raises(ValueError) as err:
+            draw(steps, agents, fs, tmp_path / "x")
+        assert str(err.value).startswith(words), str(err.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_figure_names_settings_that_are_not_a_runs():
+    steps, agents, _ = fake_run()
+    with pytest.raises(TypeError, match="^fs: expected the run's FigureSettings"):
+        plot_run(steps, agents, None, "x.png")

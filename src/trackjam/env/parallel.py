@@ -45,8 +45,10 @@ def _shown(action) -> str:
 
 def _check_replay_path(path) -> None:
     """Refuse, at construction, a ``replay_path`` that ``render()`` could not write."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"replay_path: expected a file path, got {type(path).__name__}")
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+        raise TypeError(f"replay_path: expected a file path as text, got {type(path).__name__}")
+    if "\x00" in os.fspath(path):  # render() failed with tempfile's "embedded null byte"
+        raise ValueError(f"replay_path: holds a NUL character, which no path may: {path!r:.60}")
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"replay_path: {p} is a folder, not a file")

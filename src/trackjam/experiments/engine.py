@@ -26,20 +26,23 @@ try:
 except ImportError:  # not on Windows: two sweeps into one OUT there are not told apart
     fcntl = None
 
+import numpy as np
+
 import trackjam
 from trackjam.config import Scenario
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
 from trackjam.errors import ConfigError, OutputError, shortened
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
+    EXPERIMENTS,
     SWARM,
     Experiment,
     base_data,
     base_scenario,
     configuration_columns,
     draw_for,
-    owned_keys,
     get_experiment,
+    owned_keys,
     swarm_scenario,
     trial_scenario,
 )
@@ -386,8 +389,17 @@ def run_experiment(
     (default: the experiment's, else :func:`simulate_trial`); it must be importable by the
     workers. ``grid``: the swarm experiment's cells, TARGETSxAGENTS (default 1-4x3-6).
     """
+    if not isinstance(name, str):  # None was a TypeError from deep in the message's own code
+        raise TypeError(f"name: expected an experiment's name ({', '.join(EXPERIMENTS)}), got {type(name).__name__}")
+    if trial is not None and not callable(trial):  # 5 was "'int' object has no attribute '__module__'"
+        raise TypeError(f"trial: expected a function of a scenario that returns a record, got {type(trial).__name__}")
+    if out is not None and (not isinstance(out, (str, os.PathLike)) or "\x00" in os.fspath(out)
+                            or not isinstance(os.fspath(out), str)):
+        raise TypeError(f"out: expected a folder's path as text, got {type(out).__name__} {out!r:.60}")
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
+    # numpy's integers are integers (a --seed np.int64(1) was "must be an integer"); JSON takes ints
+    trials, steps, seed = (int(v) if isinstance(v, np.integer) else v for v in (trials, steps, seed))
     _check_arguments(trials, steps, seed, workers, scheduler)
     overrides = list(overrides or [])
     out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"

@@ -75,9 +75,61 @@ def steps_xyz(steps: Columns, prefix: str) -> np.ndarray:
     return np.stack([np.asarray(steps[f"{prefix}{ax}"], dtype=float) for ax in "xyz"], axis=-1)
 
 
-def run_shape(steps: Columns, agents: Columns) -> tuple[int, int]:
-    """(T, N): number of steps and of agents in the logs."""
-    return len(np.asarray(steps["t"])), int(np.max(agents["agent"])) + 1
+# the columns of a run's logs the figure and the replay read (``mode`` of the steps, when there)
+READ_STEPS = (
+    "t", "target_exists", "target_detectable", "truth_x", "truth_y", "truth_z", "existence",
+    "est_x", "est_y", "est_z", "ospa", "aim_x", "aim_y", "aim_z", "objective", "target_received_w", "solve_s",
+)
+READ_AGENTS = (
+    "t", "agent", "prev_x", "prev_y", "prev_z", "x", "y", "z", "level_index", "power_w",
+    "point_x", "point_y", "point_z", "p_d", "detected", "measurements", "existence",
+    "interference_w", "jammed", "to_target_w",
+)
+
+
+def run_shape(steps: Columns, agents: Columns, fs: FigureSettings) -> tuple[int, int]:
+    """(T, N): number of steps and of agents in the logs, once they are checked to be one run's
+    (:func:`check_logs`)."""
+    return check_logs(steps, agents, fs)
+
+
+def check_logs(steps: Columns, agents: Columns, fs: FigureSettings) -> tuple[int, int]:
+    """(T, N) of a run's ``steps`` and ``agents`` logs, or one ValueError (TypeError for a wrong
+    type) naming the log and the problem: the columns they read (``READ_STEPS``, ``READ_AGENTS``),
+    each one-dimensional and of its log's length, steps 1..T in order, one agents row per step
+    and agent, and power levels of the antenna ``fs`` has. Handed odd logs, the figure and the
+    replay failed deep in numpy (an empty log), drew a 3-step run with one step of agents, or
+    failed on a level index of 99 with an IndexError."""
+    if not isinstance(fs, FigureSettings):
+        raise TypeError(f"fs: expected the run's FigureSettings (simulation.build.figure_settings), got {type(fs).__name__}")
+    lengths = {}
+    for name, log, columns in (("steps", steps, READ_STEPS), ("agents", agents, READ_AGENTS)):
+        if not isinstance(log, Mapping):
+            raise TypeError(f"{name}: expected the run's {name} log (column name -> array), got {type(log).__name__}")
+        missing = [c for c in columns if c not in log]
+        if missing:
+            raise ValueError(f"{name}: not a run's {name} log: missing {', '.join(missing[:4])}"
+                             f"{' and more' if len(missing) > 4 else ''}")
+        shapes = {np.shape(log[c]) for c in columns}
+        if len(shapes) != 1 or len(next(iter(shapes))) != 1:
+            raise ValueError(f"{name}: its columns must be one-dimensional and of one length, got shapes {sorted(shapes)}")
+        lengths[name] = next(iter(shapes))[0]
+    T = lengths["steps"]
+    t = np.asarray(steps["t"])
+    if T == 0 or not np.array_equal(t, np.arange(1, T + 1)):
+        raise ValueError(f"steps: t must run 1, 2, ... with one row per step, got {t[:5].tolist()}{'...' if T > 5 else ''}")
+    at, agent = np.asarray(agents["t"]), np.asarray(agents["agent"])
+    if lengths["agents"] == 0 or agent.min() < 0:
+        raise ValueError("agents: no rows, or a negative agent index")
+    N = int(agent.max()) + 1
+    if lengths["agents"] != T * N or not np.array_equal(np.sort(at * N + agent), np.arange(N, (T + 1) * N)):
+        raise ValueError(f"agents: expected one row per step (1..{T}) and agent (0..{N - 1}), {T * N} rows, "
+                         f"got {lengths['agents']} rows")
+    level = np.asarray(agents["level_index"])
+    if np.any(level < 0) or np.any(level >= len(fs.antenna.levels_w)):
+        raise ValueError(f"agents: level_index must lie in 0..{len(fs.antenna.levels_w) - 1}, the antenna's "
+                         f"power levels, got {int(level.min())}..{int(level.max())}")
+    return T, N
 
 
 def interference_per_step(agents: Columns, fs: FigureSettings) -> np.ndarray:
@@ -150,8 +202,8 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
     ``steps`` and ``agents`` are the run's logs (column name -> 1-D array), ``fs`` what the run's
     scenario says beside them (:func:`trackjam.simulation.build.figure_settings`). Returns the path.
     """
+    T, N = run_shape(steps, agents, fs)
     path = Path(path)
-    T, N = run_shape(steps, agents)
     t = np.asarray(steps["t"], dtype=float)
     fig = plt.figure(figsize=(17, 14), layout="constrained")
     outer = fig.add_gridspec(1, 2, width_ratios=[1.0, 1.15])

@@ -139,7 +139,7 @@ def _title(steps: Columns, k: int) -> str:
 def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frames: int = MAX_FRAMES) -> dict:
     """The plotly figure of the replay, as plain data (``data``, ``layout``, ``frames``): one
     frame per shown step, slider and play/pause buttons."""
-    T, N = run_shape(steps, agents)
+    T, N = run_shape(steps, agents, fs)
     shown = shown_steps(T, max_frames)
     truth = steps_xyz(steps, "truth_")
     est = steps_xyz(steps, "est_")
