@@ -493,3 +493,15 @@ def test_run_experiment_takes_numpy_integers(tmp_path):
     r = run_experiment("constraints", trials=np.int64(1), steps=np.int32(2), seed=np.int64(1), workers=1,
                        out=tmp_path / "e", progress="none")
     assert r.ran == 2 and json.loads((tmp_path / "e" / "experiment.json").read_text())["seed"] == 1
+
+
+def test_summarising_a_folder_without_an_intact_trial_is_one_line(fresh, tmp_path):
+    # it wrote tables of NaN without a word
+    out = tmp_path / "exp"
+    shutil.copytree(fresh, out)
+    for p in (out / "trials").iterdir():
+        p.write_bytes(b"")
+    before = (out / "summary.csv").read_bytes()
+    with pytest.raises(ConfigError, match=r"trials: no intact trial of this experiment, nothing to summarise \(4 damaged"):
+        summarise_folder(out)
+    assert (out / "summary.csv").read_bytes() == before

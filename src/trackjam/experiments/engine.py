@@ -31,7 +31,7 @@ import numpy as np
 import trackjam
 from trackjam.config import Scenario
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
-from trackjam.errors import ConfigError, OutputError, shortened
+from trackjam.errors import ConfigError, OutputError, printable, shortened
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
 from trackjam.experiments.definitions import (
     EXPERIMENTS,
@@ -557,7 +557,7 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     out = Path(out)
     meta = out / "experiment.json"
     if not meta.exists():
-        raise ConfigError(f"{out}: no experiment.json here")
+        raise ConfigError(f"{printable(str(out))}: no experiment.json here")
     params = read_parameters(meta)
     kinds = {"experiment": str, "trials": int, "steps": int, "seed": int, "overrides": list, "grid": (str, type(None))}
     wrong = [k for k, kind in kinds.items() if not isinstance(params.get(k), kind) or isinstance(params.get(k), bool)]
@@ -576,4 +576,7 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
         raise ConfigError(f"{out}: no trials/ folder here, nothing to summarise")
     scenarios, configurations = _plan(experiment, params["trials"], params["steps"], params["seed"], params["overrides"])
     found, notes = _read_back(out / "trials", experiment, scenarios)
+    if not found:  # tables of NaN, written without a word
+        raise ConfigError(f"{out / 'trials'}: no intact trial of this experiment, nothing to summarise"
+                          + (f" ({'; '.join(notes)})" if notes else ""))
     return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)
