@@ -85,7 +85,8 @@ def test_a_new_experiment_draws_its_own_panels_from_its_own_metrics(tmp_path, mo
 
 def test_a_panel_must_show_metrics_the_experiment_has():
     with pytest.raises(ValueError, match=r"panels show \['ospa'\]"):
-        Experiment("x", "x", (), "x.png", panels=(Panel("t", "y", (("ospa", None),)),), metrics=METRICS[:1])
+        Experiment("x", "x", (Configuration(1, "a"),), "x.png", panels=(Panel("t", "y", (("ospa", None),)),),
+                   metrics=METRICS[:1])
 
 
 def test_a_trial_function_missing_a_metric_stops_the_sweep_with_its_name(tmp_path):
