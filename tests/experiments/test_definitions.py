@@ -231,3 +231,13 @@ def test_a_hand_built_experiment_is_checked_when_it_is_made(changed, words):
     with pytest.raises(ValueError) as err:
         Experiment(**fields)
     assert words in str(err.value)
+
+
+@pytest.mark.parametrize("settings", [{"steps": 3}, {"seed": 3}, {"agents.initial": [[1.0, 1.0, 1.0]]}])
+def test_a_configuration_may_not_set_what_every_trial_sets(settings):
+    # {"steps": 3} silently replaced --steps, {"seed": 3} did nothing
+    from trackjam.experiments.experiment import Configuration, Experiment
+
+    e = Experiment("mine", "", (Configuration(1, "a", settings),), "mine.png")
+    with pytest.raises(ValueError, match=f"configuration 1 sets {next(iter(settings))}, which every trial sets itself"):
+        base_data(e, steps=3)

@@ -294,11 +294,25 @@ def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
                 raise ConfigError(f"--set {key}: swept by experiment {experiment.name} ({swept})")
 
 
+def _check_own_settings(experiment: Experiment) -> None:
+    """Refuse (ValueError) a hand-built experiment whose settings set a key its trials set
+    themselves: a configuration's ``steps`` had silently replaced --steps, its ``seed`` done
+    nothing."""
+    owned = owned_keys(experiment)
+    for where, settings in [("base_settings", experiment.base_settings)] + [
+            (f"configuration {c.index}", c.settings) for c in experiment.configurations]:
+        for key in settings:
+            if any(_overlaps(key, k) for k in owned):
+                raise ValueError(f"experiment {experiment.name}: {where} sets {key}, which every trial sets itself "
+                                 "(--steps and --seed set the steps and the seed)")
+
+
 def base_data(experiment: Experiment, steps: int, overrides: list[str] | None = None) -> dict:
     """The experiment's preset (the paper's settings, without Fig. 3's occlusions for the paper's
     trial draw), its own settings, ``steps`` steps, and the user's overrides."""
     overrides = list(overrides or [])
     check_overrides(experiment, overrides)
+    _check_own_settings(experiment)
     data, _ = load_scenario_data(experiment.preset)
     data["steps"] = steps
     if experiment.trials == DRAW:
