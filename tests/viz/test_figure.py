@@ -86,7 +86,7 @@ def test_the_figures_read_only_columns_a_real_run_logs_and_the_fake_run_copies_t
     replay_figure(steps, agents, figure_settings(scenario))
     assert steps.read - {"mode"} <= set(STEP_COLUMNS) <= set(steps)
     assert agents.read <= set(AGENT_COLUMNS) <= set(agents)
-    from trackjam.viz.figure import READ_AGENTS, READ_STEPS  # what check_logs asks of the logs
+    from trackjam.viz.figure import READ_AGENTS, READ_STEPS  # what run_shape asks of the logs
 
     assert set(READ_STEPS) == set(STEP_COLUMNS) and set(READ_AGENTS) == set(AGENT_COLUMNS)
     fake_steps, fake_agents, _ = fake_run()

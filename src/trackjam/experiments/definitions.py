@@ -277,18 +277,21 @@ def _overlaps(a: str, b: str) -> bool:
     return a == b or a.startswith(b + ".") or b.startswith(a + ".")
 
 
+def _owned(experiment: Experiment, key: str) -> str | None:
+    """The key every trial of ``experiment`` sets that ``key`` is, holds or lies in; None if none."""
+    return next((k for k in owned_keys(experiment) if _overlaps(key, k)), None)
+
+
 def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
     """Refuse ``--set`` keys that the trials or the experiment's sweep set themselves."""
-    owned = owned_keys(experiment)
     for item in overrides:
         key = item.partition("=")[0].strip()
         if experiment.trials != SWARM and _overlaps(key, "targets"):  # else: "give target or targets"
             raise ConfigError(f"--set {key}: experiment {experiment.name} draws one target per trial; "
                               "several targets: trackjam experiment swarm")
-        for key_owned in owned:
-            if _overlaps(key, key_owned):
-                hint = " (use --steps)" if key_owned == "steps" else " (use --seed)" if key_owned == "seed" else ""
-                raise ConfigError(f"--set {key}: set by every trial of an experiment, not settable{hint}")
+        if key_owned := _owned(experiment, key):
+            hint = " (use --steps)" if key_owned == "steps" else " (use --seed)" if key_owned == "seed" else ""
+            raise ConfigError(f"--set {key}: set by every trial of an experiment, not settable{hint}")
         for swept in sorted(experiment.swept_keys):
             if _overlaps(key, swept):
                 raise ConfigError(f"--set {key}: swept by experiment {experiment.name} ({swept})")
@@ -298,11 +301,10 @@ def _check_own_settings(experiment: Experiment) -> None:
     """Refuse (ValueError) a hand-built experiment whose settings set a key its trials set
     themselves: a configuration's ``steps`` had silently replaced --steps, its ``seed`` done
     nothing."""
-    owned = owned_keys(experiment)
     for where, settings in [("base_settings", experiment.base_settings)] + [
             (f"configuration {c.index}", c.settings) for c in experiment.configurations]:
         for key in settings:
-            if any(_overlaps(key, k) for k in owned):
+            if _owned(experiment, key):
                 raise ValueError(f"experiment {experiment.name}: {where} sets {key}, which every trial sets itself "
                                  "(--steps and --seed set the steps and the seed)")
 

@@ -110,14 +110,14 @@ def _antenna(ant) -> AntennaModel:
     return ant
 
 
-def _beam(x, u, aim, level_w, ant, level_max: float = math.inf):
+def _beam(x, u, aim, level_w, ant, up_to_l_max: bool = False):
     """The arguments of Eqs. (9)-(10) checked (the README's pieces used alone): positions
     ``x``, ``u`` and ``aim`` finite with 3 coordinates on the last axis, levels finite in
-    [0, level_max], all of shapes that broadcast together. Checking costs microseconds; it
-    changes no value."""
+    [0, inf) (in [0, l_max] with ``up_to_l_max``), all of shapes that broadcast together.
+    Checking costs microseconds; it changes no value."""
     _antenna(ant)
     x, u, aim = points("x", x), points("u", u), points("aim", aim)
-    level_w = amounts("level_w", level_w, 0.0, level_max)
+    level_w = amounts("level_w", level_w, 0.0, ant.l_max if up_to_l_max else math.inf)
     together(dict(x=x.shape, u=u.shape, aim=aim.shape, level_w=level_w.shape),
              x=x.shape[:-1], u=u.shape[:-1], aim=aim.shape[:-1], level_w=level_w.shape)
     return x, u, aim, level_w
@@ -126,7 +126,7 @@ def _beam(x, u, aim, level_w, ant, level_max: float = math.inf):
 def detection_probability(x, u, aim, level_w, ant: AntennaModel) -> np.ndarray:
     """Eq. (9): p_D(x, u, l) = (l / l_max) p_D^max g(eta) inside the cone, 0 outside; a level
     in [0, l_max]."""
-    x, u, aim, level_w = _beam(x, u, aim, level_w, ant, _antenna(ant).l_max)
+    x, u, aim, level_w = _beam(x, u, aim, level_w, ant, up_to_l_max=True)
     return level_w / ant.l_max * ant.p_d_max * cone_gain(x, u, aim, ant)
 
 

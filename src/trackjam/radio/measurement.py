@@ -27,6 +27,11 @@ def h(x, u) -> np.ndarray:
     state ``x`` (..., 6), seen from ``u`` (..., 3); finite, of shapes that broadcast."""
     x, u = points("x", x, (3, 6), position_only=True), points("u", u)
     together(dict(x=x.shape, u=u.shape), x=x.shape[:-1], u=u.shape[:-1])
+    return _h(x, u)
+
+
+def _h(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """:func:`h` of float arrays its callers checked (the scans: the engine's per-step path)."""
     d = x[..., :3] - u
     rho = np.linalg.norm(d, axis=-1)
     az = np.arctan2(d[..., 1], d[..., 0])
@@ -108,7 +113,7 @@ def sample_scan(
     clutter = sample_clutter(rng, clutter_rate, max_range)
     rows = []
     if x is not None and detect_draw < p_d:
-        z = h(x, u) + noise
+        z = _h(np.asarray(x, dtype=float), np.asarray(u, dtype=float)) + noise
         z[1] = wrap_angle(z[1])
         rows.append(z)
     from_target = np.zeros(len(rows) + len(clutter), dtype=bool)
@@ -144,7 +149,7 @@ def sample_scan_multi(
     for i in range(k):
         x = None if X[i] is None else np.asarray(X[i], dtype=float)
         if x is not None and np.all(np.isfinite(x[:3])) and detect_draw[i] < p_d[i]:
-            z = h(x, u) + noise[i]
+            z = _h(x, np.asarray(u, dtype=float)) + noise[i]
             z[1] = wrap_angle(z[1])
             rows.append(z)
             source.append(i)

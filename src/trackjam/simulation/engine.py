@@ -92,7 +92,29 @@ def located(cov: np.ndarray, spread: float | None) -> bool:
     return spread is None or position_spread(cov) <= spread
 
 
-class Simulation:
+class Stepping:
+    """A run stepped one step at a time that a step ending half done (an error, a Ctrl-C) leaves
+    broken: the truth and the filters had moved on without a log row, so ``step`` and ``result``
+    refuse (:meth:`_whole`) until ``reset`` clears ``broken`` (stepping on had given a run with
+    a step missing). :class:`Simulation` and the swarm engine's ``SwarmSimulation``."""
+
+    t: int
+    broken: str | None = None  # what ended a step half done; reset() clears it
+
+    def _whole(self) -> None:
+        if self.broken is not None:
+            raise RuntimeError(f"step {self.t} ended half done ({self.broken}): the run cannot go on; call reset()")
+
+    def _guarded(self, step, *args):
+        """``step(*args)``, noting in ``broken`` what ended it if it did not return."""
+        try:
+            return step(*args)
+        except BaseException as err:
+            self.broken = type(err).__name__ + (f": {str(err).splitlines()[0][:80]}" if str(err) else "")
+            raise
+
+
+class Simulation(Stepping):
     """A scenario run one step at a time. ``step()`` lets the configured solver decide;
     ``step((moves, levels))`` applies the given displacement and level indices, one per agent."""
 
@@ -119,32 +141,22 @@ class Simulation:
         self.log = RunLog(n_agents=len(agents), gate=c.gate)
         self.t = 0
         self.follow = 0  # oracle.follow_up: steps left on which the team is told the truth
-        self.broken: str | None = None  # what ended a step half done (an error, a Ctrl-C); reset() clears it
+        self.broken = None
 
     @property
     def done(self) -> bool:
         return self.t >= self.c.steps
 
-    def _whole(self) -> None:
-        if self.broken is not None:
-            raise RuntimeError(f"step {self.t} ended half done ({self.broken}): the run cannot go on; call reset()")
-
     def step(self, actions: tuple[np.ndarray, np.ndarray] | None = None) -> StepRecord:
         """One step (Algorithm 1); ``actions`` (moves, levels) replace the team's decisions. A step
-        that ends half done (its solver raised, a Ctrl-C) leaves the run broken: the truth and the
-        filters had moved on without a log row, so ``step`` and ``result`` refuse until ``reset``
-        (stepping on had given a run with a step missing)."""
+        that ends half done leaves the run broken until ``reset`` (:class:`Stepping`)."""
         self._whole()
         if self.done:
             raise RuntimeError(f"the run has ended (step {self.t} of {self.c.steps}); call reset()")
-        c, team, truth = self.c, self.team, self.truth
+        c, team = self.c, self.team
         if actions is not None:  # refused before the step changes anything
             actions = checked_actions(actions, team.positions, c.displacements, len(c.antenna.levels_w), c.low, c.high)
-        try:
-            return self._step(actions)
-        except BaseException as err:
-            self.broken = type(err).__name__ + (f": {str(err).splitlines()[0][:80]}" if str(err) else "")
-            raise
+        return self._guarded(self._step, actions)
 
     def _step(self, actions) -> StepRecord:
         c, team, truth = self.c, self.team, self.truth

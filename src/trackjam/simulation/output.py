@@ -49,6 +49,8 @@ RUN_FILES = (
     "replay.html",
 )
 STAGING = ".trackjam-staging."  # prefix of the hidden folder a run's files are written in first
+LOCK_TRIES = 20  # the times a run waiting for its folder finds it removed before it gives up
+WROTE = "trackjam_wrote"  # set on a Ctrl-C or SIGTERM that came once the run's files were all in place
 
 
 def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
@@ -163,24 +165,34 @@ def _folder_locked(out: Path, on_wait: Callable[[], None] | None = None):
         yield True
         return
     try:
-        try:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                if on_wait is not None:
-                    on_wait()
-                fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError:  # no locks on this file system
-            yield True
-            return
-        try:
-            now, held = os.stat(out), os.fstat(fd)
-        except OSError:  # removed meanwhile
-            yield False
-            return
-        yield (now.st_dev, now.st_ino) == (held.st_dev, held.st_ino)
+        locked = _lock(fd, on_wait)
+        yield not locked or _same_folder(out, fd)  # unlocked: as before the lock
     finally:
         os.close(fd)  # and with it the lock
+
+
+def _lock(fd: int, on_wait: Callable[[], None] | None) -> bool:
+    """Lock the open folder ``fd`` exclusively, waiting (``on_wait`` first) while another holds
+    it; False on a file system without locks."""
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if on_wait is not None:
+                on_wait()
+            fcntl.flock(fd, fcntl.LOCK_EX)
+    except OSError:
+        return False
+    return True
+
+
+def _same_folder(out: Path, fd: int) -> bool:
+    """The folder open as ``fd`` is still the one at ``out`` (not removed, nor replaced)."""
+    try:
+        now, held = os.stat(out), os.fstat(fd)
+    except OSError:
+        return False
+    return (now.st_dev, now.st_ino) == (held.st_dev, held.st_ino)
 
 
 def _make_folder(out: Path) -> list[Path]:
@@ -277,9 +289,6 @@ def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], Non
         # the folder was removed while this run waited for it (a write that had made it failed): again
     raise OutputError(f"--out {out}: the folder was removed {LOCK_TRIES} times while this run waited to write into it")
 
-
-LOCK_TRIES = 20
-WROTE = "trackjam_wrote"  # set on a Ctrl-C or SIGTERM that came once the run's files were all in place
 
 
 def _write_held(result, out: Path, figures: bool, made: list[Path]) -> list[Path]:

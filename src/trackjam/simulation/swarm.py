@@ -50,7 +50,7 @@ from trackjam.metrics.multi import gated_assignment, ospa_parts
 from trackjam.radio.antenna import detection_probability, interference_matrix
 from trackjam.radio.measurement import sample_scan_multi, target_exposure
 from trackjam.simulation.build import SwarmComponents, build_swarm
-from trackjam.simulation.engine import located
+from trackjam.simulation.engine import Stepping, located
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
 from trackjam.simulation.swarm_search import Aim, SearchMemory, plan_point
 from trackjam.world.swarm import TruthSwarm
@@ -175,7 +175,7 @@ def confirmed(tracks: list[FusedTrack]) -> list[FusedTrack]:
     return sorted(sure, key=lambda f: (-f.estimate.existence, track_label(f)))
 
 
-class SwarmSimulation:
+class SwarmSimulation(Stepping):
     """A scenario with several targets run one step at a time; ``step()`` lets the configured
     solver decide the moves, levels and served aims."""
 
@@ -206,7 +206,7 @@ class SwarmSimulation:
         self.memory = SearchMemory(b.team.accel_var) if b.team.searching else None
         self.log = SwarmLog([str(i) for i in c.ids])
         self.t = 0
-        self.broken: str | None = None  # what ended a step half done; reset() clears it (engine.Simulation)
+        self.broken = None
 
     @property
     def done(self) -> bool:
@@ -216,22 +216,14 @@ class SwarmSimulation:
     def positions(self) -> np.ndarray:
         return np.array([a.position for a in self.agents])
 
-    def _whole(self) -> None:
-        if self.broken is not None:
-            raise RuntimeError(f"step {self.t} ended half done ({self.broken}): the run cannot go on; call reset()")
-
     def step(self) -> SwarmRecord:
-        """One step; one that ends half done leaves the run broken until ``reset`` (as
-        :meth:`trackjam.simulation.engine.Simulation.step`)."""
+        """One step; one that ends half done leaves the run broken until ``reset``
+        (:class:`~trackjam.simulation.engine.Stepping`)."""
         self._whole()
         b = self.c.base
         if self.done:
             raise RuntimeError(f"the run has ended (step {self.t} of {b.steps}); call reset()")
-        try:
-            return self._step()
-        except BaseException as err:
-            self.broken = type(err).__name__ + (f": {str(err).splitlines()[0][:80]}" if str(err) else "")
-            raise
+        return self._guarded(self._step)
 
     def _step(self) -> SwarmRecord:
         b = self.c.base

@@ -88,13 +88,7 @@ READ_AGENTS = (
 
 
 def run_shape(steps: Columns, agents: Columns, fs: FigureSettings) -> tuple[int, int]:
-    """(T, N): number of steps and of agents in the logs, once they are checked to be one run's
-    (:func:`check_logs`)."""
-    return check_logs(steps, agents, fs)
-
-
-def check_logs(steps: Columns, agents: Columns, fs: FigureSettings) -> tuple[int, int]:
-    """(T, N) of a run's ``steps`` and ``agents`` logs, or one ValueError (TypeError for a wrong
+    """(T, N): the number of steps and of agents in a run's ``steps`` and ``agents`` logs, or one ValueError (TypeError for a wrong
     type) naming the log and the problem: the columns they read (``READ_STEPS``, ``READ_AGENTS``),
     each one-dimensional and of its log's length, steps 1..T in order, one agents row per step
     and agent, and power levels of the antenna ``fs`` has. Handed odd logs, the figure and the
