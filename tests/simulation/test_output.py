@@ -1,6 +1,9 @@
 """`trackjam run`: the output folder, its files, and refusing to overwrite what is not ours."""
 
+import contextlib
+import fcntl
 import json
+import os
 import subprocess
 import sys
 
@@ -152,87 +155,76 @@ def test_what_a_killed_write_leaves_does_not_block_the_rerun_and_is_removed(tmp_
         check_out_dir(out, small_result.scenario)
 
 
-def test_a_second_run_into_one_folder_waits_for_the_first_and_leaves_its_staging_alone(tmp_path, small_result):
-    # a second run removed the first one's live staging folder as a leftover, and the first
-    # failed ("replay.html: cannot be written (No such file or directory)")
-    import fcntl
-    import os
+@contextlib.contextmanager
+def _holding(out):
+    """``out`` locked as a first run that writes into it holds it (simulation/output.py)."""
+    fd = os.open(out, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    try:
+        yield
+    finally:
+        os.close(fd)
+
+
+def _second_run_waits(out, result, first_run_ends):
+    """A second write_run into ``out`` while a first holds it: it says it waits and waits; once
+    ``first_run_ends()`` and the lock is let go it writes its run, whole."""
     import threading
     import time
 
+    from trackjam.simulation.output import write_run
+
+    waited, errors = [], []
+    second = threading.Thread(target=lambda: _catch(errors, write_run, result, out, figures=False,
+                                                    on_wait=lambda: waited.append(1)))
+    with _holding(out):
+        second.start()
+        time.sleep(1.0)
+        assert second.is_alive() and waited == [1]
+        first_run_ends()
+    second.join(60)
+    assert not second.is_alive() and errors == []
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
+
+
+def test_a_second_run_into_one_folder_waits_for_the_first_and_leaves_its_staging_alone(tmp_path, small_result):
+    # a second run removed the first one's live staging folder as a leftover, and the first
+    # failed ("replay.html: cannot be written (No such file or directory)")
     from trackjam.simulation.output import write_run
 
     out = tmp_path / "run"
     write_run(small_result, out, figures=False)
     live = out / ".trackjam-staging.live0001.tmp"  # the first run's, while it writes
     live.mkdir()
-    fd = os.open(out, os.O_RDONLY)
-    fcntl.flock(fd, fcntl.LOCK_EX)  # the first run holds the folder
-    errors = []
-    second = threading.Thread(target=lambda: _catch(errors, write_run, small_result, out, figures=False))
-    try:
-        second.start()
-        time.sleep(1.0)
-        assert second.is_alive() and live.is_dir()  # it waits, and has removed nothing
-    finally:
-        live.rmdir()  # the first run is done
-        os.close(fd)
-    second.join(60)
-    assert not second.is_alive() and errors == []
-    assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
+
+    def first_run_ends():
+        assert live.is_dir()  # the waiting run has removed nothing
+        live.rmdir()
+
+    _second_run_waits(out, small_result, first_run_ends)
 
 
 def test_a_run_waiting_for_a_write_that_fails_and_removes_its_folder_writes_its_own(tmp_path, small_result):
     # the first write's cleanup ran after it let go of the lock: the waiting run found the folder
     # half removed (a false "holds other files", "No such file or directory", a traceback)
-    import fcntl
-    import os
-    import threading
-    import time
-
-    from trackjam.simulation.output import write_run
-
     out = tmp_path / "run"
     out.mkdir()  # made by the first run, which holds it
-    fd = os.open(out, os.O_RDONLY)
-    fcntl.flock(fd, fcntl.LOCK_EX)
-    waited, errors = [], []
-    second = threading.Thread(target=lambda: _catch(errors, write_run, small_result, out, figures=False,
-                                                    on_wait=lambda: waited.append(1)))
-    try:
-        second.start()
-        time.sleep(1.0)
-        assert second.is_alive() and waited == [1]
-        out.rmdir()  # the first run failed: it removes the folder it made, still holding the lock
-    finally:
-        os.close(fd)
-    second.join(60)
-    assert not second.is_alive() and errors == []
-    assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["scenario.yaml", "steps.parquet", "agents.parquet", "measurements.parquet", "summary.json"])
+    _second_run_waits(out, small_result, out.rmdir)  # the first run failed: it removes the folder it made, locked
 
 
 def test_a_ctrl_c_while_waiting_for_the_folder_writes_nothing_and_is_not_said_written(tmp_path, small_result):
-    import fcntl
-    import os
-
     from trackjam.simulation.output import WROTE, write_run
 
     out = tmp_path / "run"
     write_run(small_result, out, figures=False)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    fd = os.open(out, os.O_RDONLY)
-    fcntl.flock(fd, fcntl.LOCK_EX)
 
     def ctrl_c():
         raise KeyboardInterrupt
 
-    try:
-        with pytest.raises(KeyboardInterrupt) as err:
-            write_run(small_result, out, figures=False, on_wait=ctrl_c)
-    finally:
-        os.close(fd)
+    with _holding(out), pytest.raises(KeyboardInterrupt) as err:
+        write_run(small_result, out, figures=False, on_wait=ctrl_c)
     assert not getattr(err.value, WROTE, False)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
