@@ -149,6 +149,23 @@ def test_env_step_after_the_episode_says_it_ended(scenario):
         env.step(_actions())
 
 
+def test_env_after_close_refuses_step_and_render_until_reset(scenario):
+    # close() had done nothing: the closed environment went on stepping and rendering
+    env = parallel_env(scenario, render_mode="rgb_array")
+    env.reset(seed=1)
+    env.step(_actions())
+    env.close()
+    assert env.agents == []
+    with pytest.raises(RuntimeError, match=r"^step\(\) after close\(\): call reset\(\) to start a new episode$"):
+        env.step(_actions())
+    with pytest.raises(RuntimeError, match=r"^render\(\) after close\(\): call reset\(\)"):
+        env.render()
+    assert env.sim.t == 1
+    env.reset(seed=1)
+    env.step(_actions())
+    assert env.sim.t == 1 and env.agents == env.possible_agents
+
+
 @pytest.mark.parametrize("seed", [-1, 1.5, "3", 2**63, np.uint64(2**63), True, float("nan"), [1]])
 def test_env_reset_refuses_a_bad_seed_and_keeps_its_episode(scenario, seed):
     env = parallel_env(scenario)

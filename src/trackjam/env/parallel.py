@@ -36,6 +36,7 @@ RENDER_MODES = ("rgb_array", "replay")
 MAX_JAM_PENALTY = 1e6
 MAX_SEED = 2**63 - 1  # the scenario's seed bound
 NOT_STARTED = "not started"
+CLOSED = "closed"
 
 
 def _shown(action) -> str:
@@ -141,6 +142,8 @@ class TrackjamParallelEnv(ParallelEnv):
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
         if self._ended == NOT_STARTED:
             raise RuntimeError("step() before reset(): call reset() to start an episode")
+        if self._ended == CLOSED:
+            raise RuntimeError("step() after close(): call reset() to start a new episode")
         if not self.agents:
             raise RuntimeError(f"step() after the episode ended ({self._ended}); call reset()")
         if not isinstance(actions, Mapping):
@@ -241,6 +244,8 @@ class TrackjamParallelEnv(ParallelEnv):
         if self.render_mode is None:
             logger.warn("render() without a render_mode: pass render_mode='rgb_array' or 'replay'")
             return None
+        if self._ended == CLOSED:
+            raise RuntimeError("render() after close(): call reset() to start a new episode")
         if self.sim.t == 0:
             raise RuntimeError("render(): nothing to draw before the first step")
         res = self.sim.result()
@@ -263,7 +268,10 @@ class TrackjamParallelEnv(ParallelEnv):
         return np.round(img[..., :3] * 255).astype(np.uint8)
 
     def close(self) -> None:
-        pass
+        """End the episode: the environment holds no outside resource, so this only makes a
+        later step() or render() an error until reset() starts a new episode."""
+        self.agents = []
+        self._ended = CLOSED
 
 
 def _inbox(team, j: int) -> list:
