@@ -250,8 +250,9 @@ def test_render_gives_the_figure_as_pixels_and_writes_the_replay(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.html"]
 
 
-@pytest.mark.parametrize("n", [0, -1, True, 2.0, "3", None])
+@pytest.mark.parametrize("n", [0, -1, True, 2.0, "3", None, 65, 10**5])
 def test_observation_layout_refuses_what_is_not_a_team_size(n):
-    with pytest.raises(ValueError, match=r"^n_agents: expected a whole number >= 1"):
+    with pytest.raises(ValueError, match=r"^n_agents: expected a whole number in \[1, 64\]"):
         observation_layout(n)
     assert len(observation_layout(np.int64(1))) == 11  # one agent: its own entries and the time
+    assert len(observation_layout(64)) == 11 * 64  # the largest team a scenario may have

@@ -18,15 +18,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from trackjam.config.limits import MAX_AGENTS
+
 STATE = ("x", "y", "z", "vx", "vy", "vz")
 MATE_BLOCK = 11  # received flag, position (3), predicted state (6), predicted existence
 
 
 def observation_layout(n_agents: int) -> list[str]:
     """The name of every entry of an agent's observation (the same for every agent), for a team
-    of ``n_agents`` >= 1 (it gave a layout for 0 and -1 agents)."""
-    if isinstance(n_agents, (bool, np.bool_)) or not isinstance(n_agents, (int, np.integer)) or n_agents < 1:
-        raise ValueError(f"n_agents: expected a whole number >= 1 (the team's size), got {n_agents!r:.60}")
+    of ``n_agents`` in [1, MAX_AGENTS], the bound a scenario's team is held to (it gave a layout
+    for 0 and -1 agents, and built 10^5 agents' names without a word)."""
+    if (isinstance(n_agents, (bool, np.bool_)) or not isinstance(n_agents, (int, np.integer))
+            or not 1 <= n_agents <= MAX_AGENTS):
+        raise ValueError(f"n_agents: expected a whole number in [1, {MAX_AGENTS}] (the team's size), "
+                         f"got {n_agents!r:.60}")
     names = ["own.x", "own.y", "own.z"] + [f"own.est.{s}" for s in STATE] + ["own.est.e"]
     for k in range(1, n_agents):
         names += [f"mate{k}.received", f"mate{k}.x", f"mate{k}.y", f"mate{k}.z"]
