@@ -115,3 +115,38 @@ def test_an_agent_aimed_at_a_target_within_r0_detects_it_at_p_d_max():
     to_target, p_d = target_exposure(X, [True, True], [True, True], u, X[:1], ant.levels_w[-1:], ant)
     assert p_d[0, 0] == pytest.approx(ant.p_d_max) and to_target[0, 0] == pytest.approx(ant.l_max)
     assert p_d[0, 1] == 0.0 and to_target[0, 1] == 0.0  # the other target is outside the cone
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"X": 5}, r"^X: expected a list of rows"),
+        ({"X": np.zeros(3)}, r"^X: expected rows of 3 or 6 entries \(one per target\), got shape \(3,\)"),
+        ({"X": [[1.0, 2.0]]}, r"^X\[0\]: expected 3 or 6 entries"),
+        ({"X": [None, [1.0, np.nan, 2.0]]}, r"^X\[1\]: a position must be finite, or all NaN"),
+        ({"X": [[1.0, np.inf, 2.0]]}, r"^X\[0\]: a position must be finite"),
+        ({"X": [["a", "b", "c"]]}, r"^X\[0\]: expected numbers"),
+        ({"p_d": [0.5, 0.5, 0.5]}, r"^p_d: expected one probability or one per row of X \(2\)"),
+        ({"p_d": 1.5}, r"^p_d: must be finite numbers in \[0, 1\]"),
+        ({"p_d": [0.5, np.nan]}, r"^p_d: must be finite numbers in \[0, 1\]"),
+        ({"u": [1.0, 2.0]}, r"^u: expected a vector of 3 entries"),
+        ({"noise_std": [0.0, 1.0, 1.0]}, r"^noise_std: expected one deviation > 0"),
+        ({"clutter_rate": 1e12}, r"^clutter_rate: must be a finite number in \[0, 1000\]"),
+        ({"max_range": -1.0}, r"^max_range: must be a finite number in \(0, inf\)"),
+        ({"rng": 3}, r"^rng: expected a numpy Generator"),
+    ],
+)
+def test_bad_arguments_are_refused_before_any_draw(change, words):
+    # it had broadcast p_d, taken a partly NaN row as absent and drawn 1e12 clutter points
+    rng = np.random.default_rng(5)
+    args = {"rng": rng, "X": [[40.0, 30.0, 30.0], None], "u": U, "p_d": [0.5, 0.9], "noise_std": NOISE,
+            "clutter_rate": 3.0, "max_range": 52.2} | change
+    with pytest.raises((ValueError, TypeError), match=words):
+        sample_scan_multi(**args)
+    assert rng.uniform() == np.random.default_rng(5).uniform()  # nothing drawn
+
+
+def test_the_meaningful_forms_of_the_arguments_are_taken():
+    for X in ([[40.0, 30.0, 30.0, 1.0, 0.0, 0.0], None], np.array([[40.0, 30.0, 30.0], [np.nan] * 3]), [], ()):
+        Z, source = sample_scan_multi(np.random.default_rng(1), X, U, 0.9, 0.5, 3.0, 52.2)
+        assert Z.shape == (len(source), 3)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackjam.arguments import amounts, points, real, together
+from trackjam.arguments import amounts, numeric, points, real, together
 from trackjam.radio.antenna import AntennaModel, detection_probability, received_power
 
 
@@ -122,6 +122,34 @@ def sample_scan(
     return Z.reshape(-1, 3), from_target
 
 
+def _scan_multi_arguments(rng, X, u, p_d, noise_std, clutter_rate, max_range) -> list:
+    """sample_scan's checks for K targets; returns the rows of ``X`` as a list."""
+    if isinstance(X, np.ndarray):
+        if X.ndim != 2:
+            raise ValueError(f"X: expected rows of 3 or 6 entries (one per target), got shape {X.shape}")
+        rows = list(X)
+    elif isinstance(X, (list, tuple)):
+        rows = list(X)
+    else:
+        raise TypeError(f"X: expected a list of rows (one per target, None where it is not there) or an array, "
+                        f"got {type(X).__name__}")
+    for i, row in enumerate(rows):
+        if row is None:
+            continue
+        x = numeric(f"X[{i}]", row)
+        if x.shape not in ((3,), (6,)):
+            raise ValueError(f"X[{i}]: expected 3 or 6 entries (a position or a state), got shape {x.shape}")
+        finite = np.isfinite(x[:3])
+        if not (finite.all() or np.isnan(x[:3]).all()):
+            raise ValueError(f"X[{i}]: a position must be finite, or all NaN where the target is not there, "
+                             f"got {x[:3].tolist()!r}")
+    _scan_arguments(rng, None, u, 0.0, noise_std, clutter_rate, max_range)
+    probs = amounts("p_d", p_d, 0.0, 1.0)
+    if probs.ndim > 1 or probs.size not in (1, len(rows)):
+        raise ValueError(f"p_d: expected one probability or one per row of X ({len(rows)}), got shape {probs.shape}")
+    return rows
+
+
 def sample_scan_multi(
     rng: np.random.Generator,
     X,
@@ -138,9 +166,12 @@ def sample_scan_multi(
     order.
 
     Draws in a fixed order whatever the outcome: K detection draws, K noise vectors, then the
-    clutter, so that one target draws exactly what :func:`sample_scan` draws.
+    clutter, so that one target draws exactly what :func:`sample_scan` draws. The arguments are
+    checked before any draw, as :func:`sample_scan`'s are: each row of ``X`` None or 3 or 6
+    entries whose position is finite or all NaN, ``p_d`` one probability or one per row.
     """
-    k = len(X)
+    rows = _scan_multi_arguments(rng, X, u, p_d, noise_std, clutter_rate, max_range)
+    X, k = rows, len(rows)
     p_d = np.broadcast_to(np.asarray(p_d, dtype=float), (k,))
     detect_draw = rng.uniform(size=k)
     noise = rng.normal(0.0, 1.0, size=(k, 3)) * np.asarray(noise_std, dtype=float)
