@@ -11,6 +11,7 @@ import pytest
 import trackjam
 
 from trackjam.config import load_scenario
+from trackjam.errors import ConfigError
 from trackjam.env import parallel_env
 from trackjam.env.policies import random_policy, rollout
 from trackjam.simulation.engine import Simulation
@@ -289,8 +290,8 @@ def test_a_result_before_the_first_step_is_refused_in_words(preset):
     sim = Simulation(s) if preset == "paper-fig3" else SwarmSimulation(s)
     with pytest.raises(RuntimeError, match=r"^result\(\) before the first step: call step\(\) first$"):
         sim.result()
-    with pytest.raises(RuntimeError, match=r"^result\(\) before the first step"):
-        simulate(s.model_copy(update={"steps": 0}))  # a copy that skipped validation runs no step
+    with pytest.raises(ConfigError, match=r"^scenario: steps: Input should be greater than or equal to 1$"):
+        simulate(s.model_copy(update={"steps": 0}))  # a copy that skipped validation had run no step
 
 
 def test_overrides_in_a_numpy_array_are_read_in_order():
@@ -347,3 +348,33 @@ def test_a_step_that_ends_half_done_leaves_the_run_broken_until_reset(preset, mo
     while not sim.done:
         sim.step()
     assert list(sim.result().steps["t"] if preset == "paper-fig3" else sim.result().tables["steps"]["t"]) == [1, 2, 3]
+
+
+@pytest.mark.parametrize(
+    "update, words",
+    [
+        ({"steps": -1}, r"^scenario: steps: Input should be greater than or equal to 1$"),
+        ({"steps": "5"}, r"^scenario: steps: must be an integer"),
+        ({"seed": -5}, r"^scenario: seed: Input should be greater than or equal to 0$"),
+        ({"filter": {"particles": 10**12}}, r"^scenario: filter\.particles: Input should be less than or equal to"),
+    ],
+)
+def test_a_scenario_copied_past_validation_is_refused_by_every_engine(update, words):
+    # pydantic's model_copy(update=...) checks nothing: steps=-1 had run no step and then failed
+    # in result(), a text failed deep in the engine, 10^12 particles went past the memory check
+    s = load_scenario("paper-fig3", steps=3)
+    if "filter" in update:
+        update = {"filter": s.filter.model_copy(update=update["filter"])}
+    bad = s.model_copy(update=update)
+    for make in (trackjam.simulate, Simulation, parallel_env):
+        with pytest.raises(ConfigError, match=words):
+            make(bad)
+
+
+def test_a_valid_copy_runs_as_the_loaded_scenario_does():
+    s = load_scenario("paper-fig3", steps=3)
+    copied = load_scenario("paper-fig3").model_copy(update={"steps": 3})
+    a, b = trackjam.simulate(s), trackjam.simulate(copied)
+    assert a.steps.keys() == b.steps.keys()
+    for k in set(a.steps) - {"solve_s", "step_s"}:  # all but the wall times
+        np.testing.assert_array_equal(a.steps[k], b.steps[k])

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from trackjam.config import Scenario, load_scenario, scenario_to_yaml  # noqa: F401  (load_scenario: handed on)
+from trackjam.config import Scenario, load_scenario, scenario_to_yaml, validate_scenario  # noqa: F401  (load_scenario: handed on)
 from trackjam.control.planning import PlanSettings
 from trackjam.control.pursuit import AimSettings
 from trackjam.config.limits import MAX_SEED, threads_variable
@@ -174,6 +174,24 @@ def is_scenario(s: object) -> None:
     engines would fail on its first attribute."""
     if not isinstance(s, Scenario):
         raise TypeError(f"scenario: expected a Scenario (trackjam.load_scenario(...)), got {type(s).__name__}")
+    unvalidated(s)
+
+
+def unvalidated(s: Scenario) -> None:
+    """Refuse a Scenario that validation would refuse or change: pydantic's
+    ``model_copy(update=...)`` sets values unchecked, and a negative ``steps`` had run no step, a
+    text failed deep in the engine, a huge particle count went past the memory check. Costs
+    about 0.3 ms."""
+    import warnings
+
+    with warnings.catch_warnings():  # pydantic warns while it serialises a value of the wrong type
+        warnings.simplefilter("ignore")
+        data = s.model_dump(round_trip=True)
+    again = validate_scenario(data, "scenario")
+    if again != s:
+        key = next((k for k in type(s).model_fields if getattr(again, k) != getattr(s, k)), "scenario")
+        raise ConfigError(f"{key}: the scenario holds a value validation would not give ({getattr(s, key, s)!r:.60}); "
+                          "model_copy(update=...) skips validation: use load_scenario(..., key=value)")
 
 
 def one_target(s: Scenario) -> None:
