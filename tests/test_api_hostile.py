@@ -262,19 +262,23 @@ def test_write_run_checks_its_arguments_before_writing(tmp_path):
 
     r = trackjam.simulate(trackjam.load_scenario("paper-fig3", ["steps=1", "filter.particles=100",
                                                                 "filter.birth_particles=20", "control.solver=exact"]))
-    for args, kw, words in [(("x", tmp_path / "a"), {}, "result must be"), ((r, None), {}, "out must be"),
-                            ((r, 5), {}, "out must be"), ((r, ""), {}, "out must be"),
-                            ((r, tmp_path / "b"), {"figures": "no"}, "figures must be True or False")]:
-        with pytest.raises(TypeError, match=f"^write_run: {words}"):
+    for args, kw, error, words in [
+        (("x", tmp_path / "a"), {}, TypeError, "result must be"),
+        ((r, None), {}, TypeError, "out: expected a folder's path as text, got NoneType None"),
+        ((r, 5), {}, TypeError, "out: expected a folder's path as text, got int 5"),
+        ((r, ""), {}, ValueError, "out: expected a folder's path, got an empty text"),
+        ((r, tmp_path / "b"), {"figures": "no"}, TypeError, "figures must be True or False"),
+    ]:
+        with pytest.raises(error, match=f"^write_run: {words}"):
             write_run(*args, **kw)
-    with pytest.raises(ValueError, match="^write_run: out holds a NUL character"):  # os's "embedded null byte"
+    with pytest.raises(ValueError, match="^write_run: out: holds a NUL character"):  # os's "embedded null byte"
         write_run(r, str(tmp_path / "w\x005"), figures=False)
 
     class BytesPath:  # a path-like whose path is bytes
         def __fspath__(self):
             return bytes(tmp_path / "w")
 
-    with pytest.raises(TypeError, match="^write_run: out must be a folder's path as text"):
+    with pytest.raises(TypeError, match="^write_run: out: expected a folder's path as text, got BytesPath"):
         write_run(r, BytesPath(), figures=False)
     assert list(tmp_path.iterdir()) == []
 

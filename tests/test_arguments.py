@@ -141,3 +141,31 @@ def test_a_hand_built_antenna_can_still_be_replaced_field_by_field():
     a = AntennaModel(**ANTENNA)
     with pytest.raises(ValueError, match="^levels_w: must start at 0"):
         dataclasses.replace(a, levels_w=a.levels_w[1:])
+
+
+class _BytesPath:  # a path-like whose path is bytes
+    def __fspath__(self):
+        return b"/tmp/x"
+
+
+@pytest.mark.parametrize("value, error, words", [
+    (None, TypeError, r"^p: expected a file's path as text, got NoneType None$"),
+    (5, TypeError, r"^p: expected a file's path as text, got int 5$"),
+    (b"/tmp/x", TypeError, r"^p: expected a file's path as text, got bytes b'/tmp/x'$"),
+    (_BytesPath(), TypeError, r"^p: expected a file's path as text, got _BytesPath"),
+    ("", ValueError, r"^p: expected a file's path, got an empty text$"),
+    ("a\x00b", ValueError, r"^p: holds a NUL character, which no path may: 'a\\x00b'$"),
+])
+def test_text_path_refuses_what_no_path_may_be(value, error, words):
+    from trackjam.arguments import text_path
+
+    with pytest.raises(error, match=words):
+        text_path("p", value)
+
+
+def test_text_path_gives_the_text_of_a_path():
+    from pathlib import Path
+
+    from trackjam.arguments import text_path
+
+    assert text_path("p", Path("/tmp/a b")) == "/tmp/a b" and text_path("p", "r.html") == "r.html"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 
 import numpy as np
 
@@ -147,3 +148,17 @@ def covariance(name: str, value, size: int) -> np.ndarray:
     if eig[0] < -1e-9 * max(scale, 1e-300):
         raise ValueError(f"{name}: must be positive semi-definite, got an eigenvalue {eig[0]:.3g}")
     return C
+
+
+def text_path(name: str, value, what: str = "a file's path") -> str:
+    """``value``, a path given as text (a ``str`` or a path-like of one), as a ``str``. A path of
+    bytes, another kind, an empty text and a NUL character (pathlib's "embedded null byte", from
+    deep in the write) are refused naming ``name``."""
+    path = os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
+    if not isinstance(path, str):
+        raise TypeError(f"{name}: expected {what} as text, got {type(value).__name__} {_shown(value)}")
+    if not path:
+        raise ValueError(f"{name}: expected {what}, got an empty text")
+    if "\x00" in path:
+        raise ValueError(f"{name}: holds a NUL character, which no path may: {_shown(path)}")
+    return path

@@ -40,10 +40,11 @@ def test_the_largest_penalty_keeps_the_reward_finite_where_1e308_made_it_minus_i
 @pytest.mark.parametrize(
     "path, error, words",
     [
-        (None, TypeError, "expected a file path as text, got NoneType"),
-        (5, TypeError, "expected a file path as text, got int"),
-        (b"/tmp/r.html", TypeError, "expected a file path as text, got bytes"),
+        (None, TypeError, "expected a file's path as text, got NoneType None"),
+        (5, TypeError, "expected a file's path as text, got int 5"),
+        (b"/tmp/r.html", TypeError, "expected a file's path as text, got bytes"),
         ("{tmp}/r\x00.html", ValueError, "holds a NUL character"),  # render() failed in tempfile
+        ("", ValueError, "expected a file's path, got an empty text"),
         ("{tmp}", ValueError, "is a folder, not a file"),
         ("{tmp}/missing/replay.html", ValueError, "missing is not an existing folder"),
     ],

@@ -475,7 +475,9 @@ def test_summarising_a_folder_holds_its_parameters_to_a_sweeps_bounds(fresh, tmp
     ({"name": None}, TypeError, "name: expected an experiment's name"),
     ({"trial": 5}, TypeError, "trial: expected a function of a scenario"),
     ({"out": 5}, TypeError, "out: expected a folder's path as text"),
-    ({"out": "a\x00b"}, TypeError, "out: expected a folder's path as text"),
+    ({"out": "a\x00b"}, ValueError, "out: holds a NUL character, which no path may"),
+    ({"out": b"e"}, TypeError, "out: expected a folder's path as text, got bytes"),
+    ({"out": ""}, ValueError, "out: expected a folder's path, got an empty text"),
 ])
 def test_run_experiment_names_an_argument_of_the_wrong_kind(tmp_path, kwargs, error, words):
     args = {"name": "constraints", "trials": 1, "steps": 2, "workers": 1, "out": tmp_path / "e"} | kwargs

@@ -11,7 +11,6 @@ or has flown out of the area (``target.walls: leave``), and is truncated after `
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -21,6 +20,7 @@ import numpy as np
 from gymnasium import logger, spaces
 from pettingzoo import ParallelEnv
 
+from trackjam.arguments import text_path
 from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
@@ -46,11 +46,7 @@ def _shown(action) -> str:
 
 def _check_replay_path(path) -> None:
     """Refuse, at construction, a ``replay_path`` that ``render()`` could not write."""
-    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
-        raise TypeError(f"replay_path: expected a file path as text, got {type(path).__name__}")
-    if "\x00" in os.fspath(path):  # render() failed with tempfile's "embedded null byte"
-        raise ValueError(f"replay_path: holds a NUL character, which no path may: {path!r:.60}")
-    p = Path(path)
+    p = Path(text_path("replay_path", path))  # a NUL: render() failed in tempfile
     if p.is_dir():
         raise ValueError(f"replay_path: {p} is a folder, not a file")
     if special_file(p):

@@ -29,6 +29,7 @@ except ImportError:  # not on Windows: two sweeps into one OUT there are not tol
 import numpy as np
 
 import trackjam
+from trackjam.arguments import text_path
 from trackjam.config import Scenario
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
 from trackjam.errors import ConfigError, OutputError, printable, shortened
@@ -393,9 +394,8 @@ def run_experiment(
         raise TypeError(f"name: expected an experiment's name ({', '.join(EXPERIMENTS)}), got {type(name).__name__}")
     if trial is not None and not callable(trial):  # 5 was "'int' object has no attribute '__module__'"
         raise TypeError(f"trial: expected a function of a scenario that returns a record, got {type(trial).__name__}")
-    if out is not None and (not isinstance(out, (str, os.PathLike)) or "\x00" in os.fspath(out)
-                            or not isinstance(os.fspath(out), str)):
-        raise TypeError(f"out: expected a folder's path as text, got {type(out).__name__} {out!r:.60}")
+    if out is not None:
+        text_path("out", out, "a folder's path")
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
     # numpy's integers are integers (a --seed np.int64(1) was "must be an integer"); JSON takes ints

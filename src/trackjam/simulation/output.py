@@ -30,6 +30,7 @@ try:
 except ImportError:  # not on Windows: two runs into one folder there are not told apart
     fcntl = None
 
+from trackjam.arguments import text_path
 from trackjam.errors import ConfigError, OutputError
 from trackjam.files import TEMP_MARK, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
 from trackjam.simulation.build import figure_settings, scenario_text
@@ -267,13 +268,7 @@ def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], Non
     # TypeError, "" the current folder, and figures="no" drew the figures
     if not hasattr(result, "scenario") or not (hasattr(result, "steps") or hasattr(result, "tables")):
         raise TypeError(f"write_run: result must be what trackjam.simulate returns, got {type(result).__name__}")
-    if not isinstance(out, (str, os.PathLike)) or not str(out):
-        raise TypeError(f"write_run: out must be a folder's path, got {type(out).__name__} {out!r:.60}")
-    path = os.fspath(out)
-    if not isinstance(path, str):  # a path-like of bytes
-        raise TypeError(f"write_run: out must be a folder's path as text, got {type(out).__name__} {out!r:.60}")
-    if "\x00" in path:  # os's "embedded null byte", from deep in pathlib
-        raise ValueError(f"write_run: out holds a NUL character, which no path may: {out!r:.60}")
+    text_path("write_run: out", out, "a folder's path")
     if not isinstance(figures, bool):
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)
