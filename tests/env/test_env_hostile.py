@@ -137,3 +137,41 @@ def test_the_policies_and_rollout_refuse_what_is_not_an_environment_of_ours():
     with pytest.raises(ValueError, match=r"^solver_policy: unknown solver \['exact'\]"):
         solver_policy(env, ["exact"])
     assert callable(solver_policy(env, "exact")) and callable(random_policy(env))
+
+
+def test_a_solver_the_scenario_would_refuse_is_refused_before_it_plans():
+    # the scenario's GRASP settings were checked only under control.solver: grasp, so
+    # solver_policy(env, "grasp") ran 9e9 operations a step on a scenario solved by exact
+    import trackjam
+    from trackjam.env import solver_policy
+    from trackjam.env.parallel import Planned
+    from trackjam.errors import ConfigError
+
+    s = trackjam.load_scenario("paper-fig3", ["steps=2", "filter.particles=100", "filter.birth_particles=20"],
+                               control__solver="exact", control__grasp__samples=10**6,
+                               control__grasp__iterations=1000)
+    env = parallel_env(s)
+    obs, _ = env.reset(seed=1)
+    words = r"^grasp: not a solver this scenario takes: scenario: control\.grasp\.samples: one step would take"
+    with pytest.raises(ConfigError, match=words):
+        solver_policy(env, "grasp")
+    with pytest.raises(ConfigError, match=words):
+        env.step({a: Planned("grasp") for a in env.agents})
+    assert env.sim.t == 0
+    env.step(solver_policy(env, "exact")(obs))
+    assert env.sim.t == 1
+
+
+def test_close_in_with_greedy_is_refused_as_the_configuration_refuses_it():
+    import trackjam
+    from trackjam.env import solver_policy
+    from trackjam.errors import ConfigError
+
+    s = trackjam.load_scenario("paper-fig3", ["steps=2", "filter.particles=100", "filter.birth_particles=20"],
+                               control__solver="exact", control__close_in=0.05)
+    env = parallel_env(s)
+    obs, _ = env.reset(seed=1)
+    with pytest.raises(ConfigError, match=r"^greedy: not a solver this scenario takes: scenario: control\.close_in"):
+        solver_policy(env, "greedy")
+    env.step(solver_policy(env, "grasp")(obs))  # grasp takes close_in
+    assert env.sim.t == 1 and env.sim.c.plan.solver == "grasp"

@@ -25,7 +25,7 @@ from trackjam.control.solve import SOLVERS
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
 from trackjam.files import special_file
-from trackjam.simulation.build import figure_settings, is_scenario, with_seed
+from trackjam.simulation.build import figure_settings, is_scenario, solver_allowed, with_seed
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
 
@@ -97,6 +97,7 @@ class TrackjamParallelEnv(ParallelEnv):
         self._action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
         self._observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
         self._seed: int | None = None
+        self._solvers_ok: set[str] = set()
         self._ended: str | None = NOT_STARTED
 
     # -- spaces ----------------------------------------------------------------------------
@@ -114,6 +115,18 @@ class TrackjamParallelEnv(ParallelEnv):
     def action_space(self, agent: str) -> spaces.MultiDiscrete:
         self._agent(agent)
         return self._action_spaces[agent]
+
+    def check_solver(self, solver: str) -> None:
+        """Refuse a solver the scenario's configuration would refuse with ``control.solver`` set
+        to it: its settings are checked for the configured solver only, so GRASP's samples and
+        iterations, past the work cap, ran for hours under another (and ``control.close_in``
+        with greedy was ignored)."""
+        if solver not in SOLVERS:
+            raise ValueError(f"Planned: unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")
+        if solver == self.scenario.control.solver or solver in self._solvers_ok:
+            return
+        solver_allowed(self.scenario, solver)
+        self._solvers_ok.add(solver)
 
     # -- episode ---------------------------------------------------------------------------
 
@@ -182,8 +195,7 @@ class TrackjamParallelEnv(ParallelEnv):
         if len(planned) != len(self.agents) or len(solvers) != 1:
             raise ValueError("a solver plans for the whole team: give every agent the same Planned action")
         solver = solvers.pop()
-        if solver not in SOLVERS:
-            raise ValueError(f"Planned: unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")
+        self.check_solver(solver)
         c = self.sim.c
         if c.plan.solver != solver:  # the engine plans with the settings it was built with
             self.sim.c = replace(c, plan=replace(c.plan, solver=solver))

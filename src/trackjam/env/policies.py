@@ -27,6 +27,7 @@ def solver_policy(env: TrackjamParallelEnv, solver: str) -> Policy:
     _check_env(env, "solver_policy")
     if not isinstance(solver, str) or solver not in SOLVERS:  # a list was "unhashable type"
         raise ValueError(f"solver_policy: unknown solver {solver!r:.40}; choose from {', '.join(SOLVERS)}")
+    env.check_solver(solver)  # with the scenario's settings for it (GRASP's work cap, close_in)
     action = Planned(solver)
 
     def policy(obs: dict) -> dict:

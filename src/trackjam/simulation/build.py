@@ -194,6 +194,18 @@ def unvalidated(s: Scenario) -> None:
                           "model_copy(update=...) skips validation: use load_scenario(..., key=value)")
 
 
+def solver_allowed(s: Scenario, solver: str) -> None:
+    """Refuse, in one line, a solver that ``s`` with ``control.solver`` set to it would not
+    validate: a scenario's solver settings are checked for its own solver only (GRASP's work
+    cap, ``control.close_in`` with greedy), and the environment's solver policies switch it."""
+    data = s.model_dump(round_trip=True)
+    data["control"]["solver"] = solver
+    try:
+        validate_scenario(data, "scenario")
+    except ConfigError as err:
+        raise ConfigError(f"{solver}: not a solver this scenario takes: {err}") from None
+
+
 def one_target(s: Scenario) -> None:
     """Refuse a scenario with several targets for the one-target engine, in one line (a run
     with several targets goes through the swarm engine, :func:`build_swarm`)."""
