@@ -647,3 +647,16 @@ def test_a_list_option_the_swarm_engine_does_not_simulate_is_shown_as_the_file_s
     with pytest.raises(ConfigError) as err:
         check_swarm_options(s)
     assert str(err.value).startswith("comms.failures: [{'agent': 0, 'step': 1, 'mode': 'breakdown'}] is not simulated")
+
+
+@pytest.mark.parametrize("fields, words", [
+    ({"agents____initial": [[1, 1, 1]]}, r"^load_scenario\(agents____initial=\[\[1, 1, 1\]\]\): empty key$"),
+    ({"agents__initial__0": [1, 1, 1]}, r"^load_scenario\(agents__initial__0=\[1, 1, 1\]\): initial is not a section$"),
+])
+def test_a_bad_keyword_key_is_named_as_the_keyword_not_as_a_set_item(fields, words):
+    # they were blamed on "--set 'agents..initial'", which the caller never wrote
+    from trackjam.config import load_scenario
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=words):
+        load_scenario("paper-fig3", **fields)

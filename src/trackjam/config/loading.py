@@ -459,11 +459,12 @@ def _yaml_problem(err: yaml.YAMLError, lines: bool = False) -> str:
     return " ".join(problem.split()) + where
 
 
-def set_dotted(data: dict, key: str, value: Any) -> None:
-    """Set ``data[a][b][c] = value`` for ``key = "a.b.c"``, creating sections as needed."""
+def set_dotted(data: dict, key: str, value: Any, label: str | None = None) -> None:
+    """Set ``data[a][b][c] = value`` for ``key = "a.b.c"``, creating sections as needed.
+    ``label`` names what set it in a message (default: ``--set KEY``)."""
     parts = key.strip().split(".")
     if not all(parts):
-        raise ConfigError(f"--set {key!r}: empty key")
+        raise ConfigError(f"{label or f'--set {key!r}'}: empty key")
     node = data
     for p in parts[:-1]:
         nxt = node.get(p)
@@ -471,7 +472,7 @@ def set_dotted(data: dict, key: str, value: Any) -> None:
             nxt = {}
             node[p] = nxt
         if not isinstance(nxt, dict):
-            raise ConfigError(f"--set {key}: {p} is not a section")
+            raise ConfigError(f"{label or f'--set {key}'}: {p} is not a section")
         node = nxt
     node[parts[-1]] = value
 
@@ -597,8 +598,8 @@ def load_scenario(
     blame = overridden_keys(overrides)
     for key, value in fields.items():
         dotted = key.replace("__", ".")
-        set_dotted(data, dotted, value)
         blame[dotted] = f"load_scenario({printable(shortened(f'{key}={_shown_value(value)}', SET_SHOWN))})"
+        set_dotted(data, dotted, value, blame[dotted])
     return validate_scenario(data, label, blame)
 
 
