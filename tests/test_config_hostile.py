@@ -660,3 +660,33 @@ def test_a_bad_keyword_key_is_named_as_the_keyword_not_as_a_set_item(fields, wor
 
     with pytest.raises(ConfigError, match=words):
         load_scenario("paper-fig3", **fields)
+
+
+# -- covariance intersection's work (fusion) ------------------------------------------------------
+
+AGENTS_64 = "agents.initial=[" + ",".join("[%d,%d,%d]" % (5 + i % 4 * 25, 5 + i // 4 % 4 * 25, 20 + i // 16 * 15)
+                                          for i in range(64)) + "]"
+TARGETS_64 = "targets=[" + ",".join("{id: t%d, initial: [%d, %d, 50, 0, 0, 0]}" % (k, 5 + k % 8 * 12, 5 + k // 8 * 12)
+                                    for k in range(64)) + "]"
+
+
+def test_track_fusion_too_large_for_a_step_is_refused_naming_the_agents():
+    # 64 targets seen by 64 agents: the swarm engine's track fusion took 56 s of a 76 s step,
+    # which the cap did not count
+    items = ["steps=2", AGENTS_64, TARGETS_64, "filter.particles=100", "filter.birth_particles=20"]
+    assert _refused("swarm-3", items).endswith(  # the message begins with the long --set item
+        "agents.initial: one step would take about 4.1e+09 operations (fusion), past the cap of 1e+09; lower agents.initial")
+
+
+def test_fusion_work_counts_one_fusion_per_inbox():
+    from trackjam.config.limits import fusion_ops
+
+    base = ["control.solver=exact", AGENTS_32]
+    one = estimate(load_scenario("paper-fig3", base))["work_fusion"][0]
+    assert one == fusion_ops(32)
+    lossy = estimate(load_scenario("paper-fig3", base + ["comms.loss=0.1"]))["work_fusion"][0]
+    assert lossy == 32 * fusion_ops(32)  # every agent fuses an inbox of its own
+    coasted = estimate(load_scenario("paper-fig3", base + ["comms.delay_steps=1", "comms.stale=coast"]))
+    assert coasted["work_fusion"][0] == 32 * fusion_ops(32)
+    assert "work_fusion" not in estimate(load_scenario("paper-fig3", base + ["fusion.share=scans"]))
+    assert fusion_ops(2) == fusion_ops(1)  # two estimates: a scalar search, no SLSQP
