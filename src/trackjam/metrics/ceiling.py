@@ -109,6 +109,8 @@ def team_chase(truth: np.ndarray, initial: np.ndarray, max_step: float, low, hig
     u = points("initial", initial)
     if u.ndim > 2:
         raise ValueError(f"initial: expected rows of 3 entries (one agent: a vector), got shape {u.shape}")
+    if u.size == 0:  # no chaser: the nearest one's distance was numpy's "zero-size array to reduction"
+        raise ValueError(f"initial: the team needs at least one agent, got shape {u.shape}")
     u = np.array(u.reshape(-1, 3))
     low, high = corners(low, high, scalars=True)
     out = np.empty((len(truth), len(u), 3))
