@@ -79,7 +79,7 @@ def _spy(monkeypatch):
     """Records each step's fused predicted tracks (the step's first fusion of two) and the aims
     x_bar_k handed to the solver, by step."""
     seen = {"fused": [], "x_bar": {}}
-    fuse, build = swarm.fuse_tracks, swarm.build_assignment
+    fuse, build = swarm.fuse_tracks_unchecked, swarm.build_assignment
 
     def fuse_spy(tracks, *a, **kw):
         seen["fused"].append(fuse(tracks, *a, **kw))
@@ -89,7 +89,7 @@ def _spy(monkeypatch):
         seen["x_bar"][(len(seen["fused"]) + 1) // 2] = np.array(aims)
         return build(positions, aims, *a, **kw)
 
-    monkeypatch.setattr(swarm, "fuse_tracks", fuse_spy)
+    monkeypatch.setattr(swarm, "fuse_tracks_unchecked", fuse_spy)
     monkeypatch.setattr(swarm, "build_assignment", build_spy)
     return seen
 

@@ -188,6 +188,45 @@ def sample_scan_multi(
     return Z.reshape(-1, 3), np.array(source + [-1] * len(clutter), dtype=np.int64)
 
 
+def _flags(name: str, value, k: int) -> np.ndarray:
+    """``value`` as a bool vector of ``k`` entries: booleans, or the integers 0 and 1."""
+    a = np.asarray(value)
+    if a.dtype != bool and a.size:  # an empty list (no target) is read as floats
+        if a.dtype.kind not in "iu":
+            raise TypeError(f"{name}: expected booleans (or 0 and 1), one per target, got {a.dtype} {_shown(a)}")
+        if not np.all((a == 0) | (a == 1)):
+            raise ValueError(f"{name}: expected booleans (or 0 and 1), got {_shown(a)}")
+    if a.shape != (k,):
+        raise ValueError(f"{name}: expected one entry per target ({k}), got shape {a.shape}")
+    return a.astype(bool, copy=False)
+
+
+def _shown(a: np.ndarray) -> str:
+    text = repr(a.tolist())
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _exposure_arguments(X, exists, detectable, u, aim, level_w, ant):
+    """target_exposure's arguments checked (the README's pieces used alone); changes no value."""
+    if not isinstance(ant, AntennaModel):
+        raise TypeError(f"ant: expected an AntennaModel, got {type(ant).__name__}")
+    X = numeric("X", X)
+    if X.ndim != 2 or X.shape[1] != 3:
+        raise ValueError(f"X: expected rows of 3 entries (K, 3), one per target, got shape {X.shape}")
+    k = len(X)
+    exists, detectable = _flags("exists", exists, k), _flags("detectable", detectable, k)
+    if not np.isfinite(X[exists]).all():
+        raise ValueError("X: a present target's row (exists True) must be finite; an absent one's is not read")
+    u, aim = points("u", u, ndim=2), points("aim", aim, ndim=2)
+    n = len(u)
+    if aim.shape != (n, 3):
+        raise ValueError(f"aim: expected one aim per agent as u has ({n}, 3), got shape {aim.shape}")
+    level = amounts("level_w", level_w, 0.0, ant.l_max)
+    if level.shape != (n,):
+        raise ValueError(f"level_w: expected one level per agent ({n}), got shape {level.shape}")
+    return X, exists, detectable, u, aim, level
+
+
 def target_exposure(
     X, exists, detectable, u: np.ndarray, aim: np.ndarray, level_w: np.ndarray, ant: AntennaModel
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -196,7 +235,17 @@ def target_exposure(
     jammed), and agent j's detection probability of target k, Eq. (9), 0 where the target is
     absent or occluded. ``X`` (K, 3) true positions (rows of absent targets are not read);
     ``u``, ``aim`` (N, 3) positions and antenna aims [m]; ``level_w`` (N,) transmit powers [W].
-    A target's column is what the one-target engine computes for it."""
+    A target's column is what the one-target engine computes for it.
+
+    Checked before any work: ``X`` (K, 3), finite on the rows of present targets (an absent
+    one's may be NaN); ``exists`` and ``detectable`` K booleans (or 0 and 1); ``u`` and ``aim``
+    finite (N, 3); ``level_w`` N levels in [0, l_max]. The swarm engine, whose arrays are built
+    so, calls :func:`target_exposure_unchecked`; both give the same result."""
+    return target_exposure_unchecked(*_exposure_arguments(X, exists, detectable, u, aim, level_w, ant), ant)
+
+
+def target_exposure_unchecked(X, exists, detectable, u, aim, level_w, ant: AntennaModel) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`target_exposure` without the checks of its arguments: the engine's."""
     X = np.asarray(X, dtype=float).reshape(-1, 3)
     exists, detectable = np.asarray(exists, dtype=bool), np.asarray(detectable, dtype=bool)
     x = np.where(exists[:, None], X, 0.0)[None, :, :]

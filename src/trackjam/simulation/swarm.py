@@ -45,10 +45,10 @@ from trackjam.control.fallback import fallback_levels
 from trackjam.estimation.bernoulli import Estimate, Scan
 from trackjam.estimation.fusion import CONFIRM, fuse_unchecked
 from trackjam.estimation.lmb import LMBFilter, Track, TrackEstimate
-from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks
+from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks_unchecked
 from trackjam.metrics.multi import gated_assignment, ospa_parts
 from trackjam.radio.antenna import detection_probability, interference_matrix
-from trackjam.radio.measurement import sample_scan_multi, target_exposure
+from trackjam.radio.measurement import sample_scan_multi, target_exposure_unchecked
 from trackjam.simulation.build import SwarmComponents, build_swarm
 from trackjam.simulation.engine import Stepping, located
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
@@ -231,7 +231,7 @@ class SwarmSimulation(Stepping):
         self.t = t = self.t + 1
         truth = self.truth
         truth.step(t)
-        predicted = fuse_tracks([a.filter.predict() for a in self.agents])
+        predicted = fuse_tracks_unchecked([a.filter.predict() for a in self.agents])
         aims = self._aims(t, predicted)
         t_plan = time.perf_counter()
         plan = self._plan(aims)
@@ -246,8 +246,8 @@ class SwarmSimulation(Stepping):
         positions = self.positions
         points = self._points(aims, plan["serve"])
         level_w = b.antenna.levels_w[plan["level"]]
-        to_target, p_d = target_exposure(np.nan_to_num(truth.positions), truth.exists, truth.detectable, positions,
-                                         points, level_w, b.antenna)
+        to_target, p_d = target_exposure_unchecked(np.nan_to_num(truth.positions), truth.exists, truth.detectable,
+                                                   positions, points, level_w, b.antenna)
         received = to_target.sum(axis=0)
         truth.apply_jamming(t, received)
         interference = interference_matrix(positions, points, level_w, b.antenna).sum(axis=1)
@@ -262,7 +262,7 @@ class SwarmSimulation(Stepping):
                for j, (a, (Z, _)) in enumerate(zip(self.agents, scans))]
         # with every scan in every filter each agent is informed of every track it holds
         informed = [np.ones(len(m), dtype=bool) for m in own] if shared else self._informed(own, points, level_w)
-        team = informed_fusion(fuse_tracks(own), own, informed)
+        team = informed_fusion(fuse_tracks_unchecked(own), own, informed)
         if b.team.feedback and not shared:
             self._feed_back(team)
         for a in self.agents:  # filter.response: each filter knows the team's transmissions of the step
