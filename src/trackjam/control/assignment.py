@@ -12,6 +12,7 @@ The problem, its objective and the rules per target are in :mod:`assignment_prob
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Callable, Sequence
 
 import numpy as np
@@ -69,7 +70,28 @@ def _exact(problem: AssignmentProblem, rngs: Sequence[np.random.Generator],
 def solve_assignment(problem: AssignmentProblem, solver: str, rngs: Sequence[np.random.Generator],
                      options: SolverOptions = SolverOptions()) -> AssignmentSolution:
     """The step's joint control for K targets by the registered ``solver`` (``rngs``: one
-    generator per agent, each agent's plan stream; only ``grasp`` draws from them)."""
+    generator per agent, each agent's plan stream; only ``grasp`` draws from them).
+
+    Checked first: ``problem`` an :class:`AssignmentProblem` (:func:`build_assignment`),
+    ``solver`` a registered name, ``rngs`` a list (any iterable) of numpy Generators, one per
+    agent for ``grasp`` (the others draw nothing and take any number, none too), ``options`` a
+    :class:`SolverOptions` (which checks its own fields)."""
+    if not isinstance(problem, AssignmentProblem):
+        raise TypeError(f"problem: expected an AssignmentProblem (build_assignment(...)), got {type(problem).__name__}")
+    if not isinstance(solver, str):
+        raise TypeError(f"solver: expected a solver's name, one of {', '.join(ASSIGNMENT_SOLVERS)}, "
+                        f"got {type(solver).__name__} {solver!r:.40}")
     if solver not in ASSIGNMENT_SOLVERS:
-        raise ValueError(f"unknown solver {solver!r}; expected one of {', '.join(ASSIGNMENT_SOLVERS)}")
+        raise ValueError(f"solver: unknown solver {solver!r:.40}; expected one of {', '.join(ASSIGNMENT_SOLVERS)}")
+    if isinstance(rngs, (str, bytes, np.random.Generator)) or not isinstance(rngs, Iterable):
+        raise TypeError(f"rngs: expected a list of numpy Generators, one per agent, got {type(rngs).__name__}")
+    rngs = list(rngs)
+    for j, rng in enumerate(rngs):
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rngs[{j}]: expected a numpy Generator (numpy.random.default_rng(seed)), "
+                            f"got {type(rng).__name__} {rng!r:.40}")
+    if solver == "grasp" and len(rngs) != problem.n_agents:
+        raise ValueError(f"rngs: grasp draws from one generator per agent ({problem.n_agents}), got {len(rngs)}")
+    if not isinstance(options, SolverOptions):
+        raise TypeError(f"options: expected a SolverOptions (SolverOptions(samples=..., ...)), got {type(options).__name__}")
     return ASSIGNMENT_SOLVERS[solver](problem, rngs, options)

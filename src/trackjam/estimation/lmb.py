@@ -39,15 +39,24 @@ after a hidden spell less often than the Bernoulli filter).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
 
+from trackjam.arguments import corners, numeric, real, vector, whole
+from trackjam.config.limits import MAX_ACCEL_VAR, MAX_SPEED
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
 from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
-from trackjam.estimation.kernels import kernel_cv_predict, kernel_logsumexp, kernel_reflect, kernel_systematic_indices
+from trackjam.estimation.kernels import (
+    GATE,
+    kernel_cv_predict,
+    kernel_logsumexp,
+    kernel_reflect,
+    kernel_systematic_indices,
+)
 from trackjam.estimation.lmb_association import association_marginals
 from trackjam.estimation.lmb_kernels import (
     kernel_association_factors,
@@ -58,12 +67,20 @@ from trackjam.estimation.lmb_kernels import (
     kernel_seen_factors,
 )
 from trackjam.radio.antenna import AntennaModel
-from trackjam.radio.measurement import clutter_density
+from trackjam.radio.measurement import CLUTTER_RATE_MAX, clutter_density
 
 DT = 1.0  # dT [s]
 CONFIRM = 0.5  # a track is confirmed once r > 0.5 (Section V-A's e > 0.5)
 BIRTH_FLOOR = 0.1  # smallest standard deviation per axis of a birth's position Gaussian [m] (ours)
 CONE_MARGIN = 1e-6  # [m] a track's particles this far outside a scan's cone skip its kernel (10^3 x its tolerance)
+# LMBParams' budgets where the configuration sets no bound (it fixes these fields): lambda_B up to
+# the clutter's bound (births come one per measurement), at most 1000 tracks (the ranked
+# assignment is cubic in them), 10^6 Gibbs sweeps (the sampler draws sweeps x tracks uniforms at
+# once: 160 MB at 20 tracks) and 10^4 ranked hypotheses (one assignment solved per hypothesis)
+BIRTH_RATE_MAX = CLUTTER_RATE_MAX
+MAX_TRACKS_LIMIT = 1000
+GIBBS_SAMPLES_MAX = 1_000_000
+RANKED_K_MAX = 10_000
 
 
 @dataclass(frozen=True)
@@ -91,16 +108,37 @@ class LMBParams:
     response: FailSafe | None = None  # filter.response: the fail-safe it expects of a jammed target; None: Eq. (1) always
 
     def __post_init__(self):
-        if self.association not in ("gibbs", "ranked"):
-            raise ValueError(f"association must be 'gibbs' or 'ranked', got {self.association!r}")
+        # every field, with the configuration's bounds where it has them (trackjam.config:
+        # filter.*, sensor.*, area.*) and budgets where it does not: built by hand, accel_var=-1
+        # was a "math domain error", noise_std 0 a ZeroDivisionError, a negative clutter_rate an
+        # existence of 1, a NaN made every track vanish, gibbs_samples=10**12 a MemoryError
+        real("survival_prob", self.survival_prob, 0.0, 1.0)
+        whole("particles", self.particles, 1, 10_000_000)  # a track's particles: a hand-made set may hold a few
+        whole("birth_particles", self.birth_particles, 1, 10_000_000)
+        real("birth_rate", self.birth_rate, 0.0, BIRTH_RATE_MAX)
+        if not 0.0 < real("birth_existence_max", self.birth_existence_max) < 1.0:
+            raise ValueError(f"birth_existence_max: must lie in (0, 1), got {float(self.birth_existence_max)!r}")
+        real("birth_speed", self.birth_speed, 0.0, MAX_SPEED)
+        real("accel_var", self.accel_var, 0.0, MAX_ACCEL_VAR)
         if self.walls not in ("reflect", "none"):
-            raise ValueError(f"walls must be 'reflect' or 'none', got {self.walls!r}")
-        if not 0.0 < self.birth_existence_max < 1.0 or not 0.0 <= self.survival_prob <= 1.0:
-            raise ValueError("birth_existence_max must lie in (0, 1) and survival_prob in [0, 1]")
-        if min(self.particles, self.birth_particles, self.max_tracks, self.gibbs_samples, self.ranked_k) < 1:
-            raise ValueError("particle counts, max_tracks, gibbs_samples and ranked_k must be positive")
-        if self.visibility is not None and not all(0.0 <= q <= 1.0 for q in self.visibility):
-            raise ValueError(f"visibility (hide, reappear) must lie in [0, 1], got {self.visibility!r}")
+            raise ValueError(f"walls: expected 'reflect' or 'none', got {self.walls!r:.40}")
+        corners(self.low, self.high)
+        if np.any(vector("noise_std", self.noise_std) <= 0.0):
+            raise ValueError(f"noise_std: the standard deviations must be > 0, got {np.asarray(self.noise_std).tolist()}")
+        real("clutter_rate", self.clutter_rate, 0.0, CLUTTER_RATE_MAX)
+        real("prune", self.prune, 0.0, 1.0)
+        whole("max_tracks", self.max_tracks, 1, MAX_TRACKS_LIMIT)
+        if self.association not in ("gibbs", "ranked"):
+            raise ValueError(f"association: expected 'gibbs' or 'ranked', got {self.association!r:.40}")
+        whole("gibbs_samples", self.gibbs_samples, 1, GIBBS_SAMPLES_MAX)
+        whole("ranked_k", self.ranked_k, 1, RANKED_K_MAX)
+        if self.visibility is not None:
+            if isinstance(self.visibility, (str, bytes)) or len(self.visibility) != 2:
+                raise ValueError(f"visibility: expected (hide, reappear), got {self.visibility!r:.40}")
+            real("visibility hide", self.visibility[0], 0.0, 1.0)
+            real("visibility reappear", self.visibility[1], 0.0, 1.0)
+        if self.response is not None and not isinstance(self.response, FailSafe):
+            raise TypeError(f"response: expected a FailSafe or None, got {type(self.response).__name__}")
 
 
 @dataclass(frozen=True)
@@ -257,6 +295,43 @@ def draw_birth(rng: np.random.Generator, scan: Scan, j: int, n: int, b: UniformB
     return X, log_w - kernel_logsumexp(log_w)
 
 
+def _point(name: str, value) -> np.ndarray:
+    """A finite 3-vector; the engine's float arrays take the short way (about 1 us)."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,):
+        if np.isfinite(value).all():
+            return value
+    return vector(name, value)
+
+
+def _update_arguments(Z, u, aim, level_w, others, ant: AntennaModel, noise_std: np.ndarray) -> Sequence[Scan]:
+    """LMBFilter.update's checks (about 7 us on the engine's arrays): ``Z`` finite rows of 3
+    (an empty list: no measurement) whose range is above -GATE range deviations (no target or
+    clutter makes one below: the kernels' gate drops it), ``u`` and ``aim`` finite 3-vectors,
+    ``level_w`` in [0, l_max], ``others`` Scans (any iterable, returned as a list or tuple)."""
+    a = Z if type(Z) is np.ndarray and Z.dtype == np.float64 else numeric("Z", Z)
+    if a.ndim != 2 or a.shape[1] != 3:
+        if not (a.ndim == 1 and a.size == 0):
+            raise ValueError(f"Z: expected rows of 3 entries (m, 3) [rho, azimuth, inclination], got shape {a.shape}")
+    elif len(a):
+        if not np.isfinite(a).all():
+            raise ValueError(f"Z: must be finite, got {'NaN' if np.isnan(a).any() else 'an infinite value'}")
+        low = -GATE * float(noise_std[0])
+        if a[:, 0].min() < low:
+            raise ValueError(f"Z: a range (first entry) below -{GATE:g} range deviations ({low:g} m) is no "
+                             f"measurement, got {float(a[:, 0].min())!r}")
+    _point("u", u)
+    _point("aim", aim)
+    real("level_w", level_w, 0.0, ant.l_max)
+    if not isinstance(others, (list, tuple)):
+        if not isinstance(others, Iterable) or isinstance(others, (str, bytes, Scan)):
+            raise TypeError(f"others: expected a list of the teammates' Scans, got {type(others).__name__}")
+        others = list(others)
+    for i, other in enumerate(others):
+        if not isinstance(other, Scan):
+            raise TypeError(f"others[{i}]: expected a Scan (Scan.of(Z, u, aim, level_w, ant)), got {type(other).__name__}")
+    return others
+
+
 class LMBFilter:
     """One agent's LMB filter. Call ``predict()`` then ``update(...)`` each step; ``tracks``
     holds the current Bernoulli components."""
@@ -311,7 +386,13 @@ class LMBFilter:
         this is the Bernoulli update by the product of their factors, up to rounding: r is a
         probability, so odds beyond 1e16 after one scan round it to 1, which no later scan
         lowers); then the births of the own scan, pruning, the cap and resampling. Runs
-        ``predict()`` first if it was not called since the last update."""
+        ``predict()`` first if it was not called since the last update.
+
+        Checked first (about 7 us): ``Z`` finite (m, 3) rows (an empty list: no
+        measurement) with ranges above -11 range deviations, ``u`` and ``aim`` finite 3-vectors,
+        ``level_w`` in [0, l_max], ``others`` Scans; before, a NaN position or level removed every
+        track and a (3, 2) or (6,) ``Z`` was silently read as rows of 3."""
+        others = _update_arguments(Z, u, aim, level_w, others, self.ant, self.noise_std)
         if not self._predicted:
             self.predict()
         scan = Scan.of(Z, u, aim, level_w, self.ant)
