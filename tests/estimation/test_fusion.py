@@ -95,3 +95,36 @@ def test_singular_covariance_does_not_break_fusion():
     C = np.zeros((6, 6))
     fused = fuse([est(0.9, np.ones(6), C), est(0.8, np.ones(6), np.eye(6))])
     assert np.all(np.isfinite(fused.mean)) and np.all(np.isfinite(fused.cov))
+
+
+_CI_SCRIPT = """
+import sys, numpy as np
+from trackjam.estimation.fusion import covariance_intersection
+rng = np.random.default_rng(7)
+rows = []
+for _ in range(12):
+    means = rng.normal(size=(3, 6)) * 10
+    covs = [(lambda A: A @ A.T + np.eye(6))(rng.normal(size=(6, 6))) for _ in range(3)]
+    m, C, w = covariance_intersection(means, covs)
+    rows.append(np.concatenate([m, C.ravel(), w]))
+sys.stdout.write(np.array(rows).tobytes().hex())
+"""
+
+
+def test_covariance_intersection_gives_the_same_bits_whatever_blas_threads_the_process_has():
+    # SLSQP's weights differed in the 8th digit under OMP_NUM_THREADS=1 (Dask's workers), so a
+    # sweep on Dask differed from the same sweep on the local pool
+    import os
+    import subprocess
+    import sys
+
+    def run(threads: str | None) -> str:
+        env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
+        if threads is not None:
+            env |= {"OMP_NUM_THREADS": threads, "OPENBLAS_NUM_THREADS": threads}
+        return subprocess.run([sys.executable, "-c", _CI_SCRIPT], env=env, capture_output=True, text=True,
+                              check=True, timeout=300).stdout
+
+    single, default, four = run("1"), run(None), run("4")
+    assert len(single) == 12 * (6 + 36 + 3) * 16
+    assert single == default == four
