@@ -3,6 +3,7 @@ engine does not read, an output folder holding a binary scenario.yaml, a bench -
 folder nobody can write. One line on stderr naming the key or option, exit status 2, no
 traceback, nothing written."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -636,3 +637,30 @@ def test_a_reader_that_stops_early_does_not_end_the_run_whatever_the_encoding(tm
     p.stdout.close()
     assert p.wait(timeout=300) == 0
     assert (out / "summary.json").exists()
+
+
+@pytest.mark.parametrize("closed", [1, 2])
+@pytest.mark.parametrize("args", [["--version"], ["presets"], ["validate", "paper-fig3"]])
+def test_a_closed_standard_stream_is_the_null_device(args, closed):
+    # `trackjam --version >&-` was a traceback, and with `2>&-` a command that did its work
+    # ended with exit status 1
+    r = subprocess.run([sys.executable, "-m", "trackjam", *args], capture_output=True, text=True,
+                       preexec_fn=lambda: os.close(closed))
+    assert r.returncode == 0
+    assert "Traceback" not in r.stdout + r.stderr
+
+
+def test_a_run_with_both_standard_streams_closed_writes_its_files(tmp_path):
+    out = tmp_path / "r"
+
+    def close_both():
+        os.close(1)
+        os.close(2)
+
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "steps=2", "--no-figures",
+                        "--out", str(out)], preexec_fn=close_both)
+    assert r.returncode == 0
+    assert sorted(f.name for f in out.iterdir()) == ["agents.parquet", "measurements.parquet", "scenario.yaml",
+                                                     "steps.parquet", "summary.json"]
+    bad = subprocess.run([sys.executable, "-m", "trackjam", "validate", "no-such-preset"], preexec_fn=close_both)
+    assert bad.returncode == 2  # the one line went nowhere, the status still says it

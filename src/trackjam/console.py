@@ -14,7 +14,8 @@ Python code may call too.
   the standard output and error write through :class:`_PipeSafe`, which points its file
   descriptor at the null device at the first broken pipe, and the command goes on to write its
   files, silently. Without it the first progress line after `head` left raised BrokenPipeError,
-  exit status 1, and the run was lost without a word.
+  exit status 1, and the run was lost without a word. A closed standard stream (`>&-`) is the
+  null device (:func:`_reopened`).
 """
 
 import io
@@ -76,13 +77,30 @@ def _pipe_safe(stream):
                             line_buffering=stream.line_buffering, write_through=stream.write_through)
 
 
+def _reopened(fd: int, stream):
+    """``stream``, or, when the standard stream was closed (`>&-`, `2>&-`: Python then sets it
+    to None), a text stream on the null device at the same descriptor, so that the command runs
+    and writes its files as when its output is thrown away (it ended with a traceback, `--version`
+    too, or with exit status 1 after a run that wrote everything)."""
+    if stream is not None:
+        return stream
+    try:
+        os.fstat(fd)
+    except OSError:
+        null = os.open(os.devnull, os.O_WRONLY)  # the lowest free descriptor: fd itself when it is closed
+        if null != fd:
+            os.dup2(null, fd)
+            os.close(null)
+    return io.TextIOWrapper(io.FileIO(fd, "w", closefd=False), encoding="utf-8", line_buffering=True)
+
+
 def _terminated(signum, frame) -> None:
     raise SystemExit(TERMINATED)
 
 
 def main() -> None:
-    sys.stdout = _pipe_safe(sys.stdout)
-    sys.stderr = _pipe_safe(sys.stderr)
+    sys.stdout = _pipe_safe(_reopened(1, sys.stdout))
+    sys.stderr = _pipe_safe(_reopened(2, sys.stderr))
     signal.signal(signal.SIGTERM, _terminated)
     try:
         import trackjam.cli as cli
