@@ -664,3 +664,15 @@ def test_a_run_with_both_standard_streams_closed_writes_its_files(tmp_path):
                                                      "steps.parquet", "summary.json"]
     bad = subprocess.run([sys.executable, "-m", "trackjam", "validate", "no-such-preset"], preexec_fn=close_both)
     assert bad.returncode == 2  # the one line went nowhere, the status still says it
+
+
+def test_an_ascii_output_gets_the_experiments_table_in_ascii(tmp_path):
+    # LC_ALL=C with PYTHONUTF8=0 (or PYTHONIOENCODING=ascii): the closing table's "±" ended the
+    # experiment in a UnicodeEncodeError traceback, exit status 1, after its files were written
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONUTF8", "LC_ALL", "LANG")}
+    env |= {"PYTHONIOENCODING": "ascii", "LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    r = subprocess.run([sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "2", "--steps", "2",
+                        "--workers", "1", "--out", str(tmp_path / "e")], capture_output=True, env=env)
+    assert r.returncode == 0 and b"Traceback" not in r.stderr, r.stderr.decode(errors="replace")
+    assert b"mean +- 95% CI" in r.stdout and b" +- " in r.stdout
+    assert r.stdout.isascii()

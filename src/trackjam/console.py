@@ -73,7 +73,10 @@ def _pipe_safe(stream):
     except (AttributeError, OSError, ValueError):
         return stream
     buffered = io.BufferedWriter(_PipeSafe(fd))
-    return io.TextIOWrapper(buffered, encoding=stream.encoding, errors=stream.errors,
+    # an encoding that lacks a character we print (ASCII under LC_ALL=C with PYTHONUTF8=0: the
+    # experiment's "±") shows "?" for it rather than ending the command in a traceback
+    errors = "replace" if stream.errors == "strict" or stream.errors == "surrogateescape" else stream.errors
+    return io.TextIOWrapper(buffered, encoding=stream.encoding, errors=errors,
                             line_buffering=stream.line_buffering, write_through=stream.write_through)
 
 

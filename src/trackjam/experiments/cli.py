@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 from pathlib import Path
 
 from trackjam.experiments.engine import run_experiment
@@ -44,7 +45,7 @@ def experiment_command(
         out=out if out is not None else Path("runs") / f"experiment-{name}", overrides=overrides, grid=grid,
     )
     # escaped: rich read a [bracketed] part of the --out path as markup and dropped it
-    table = Table(title=escape(f"{name}: mean ± 95% CI over trials ({result.out / 'summary.csv'})"))
+    table = Table(title=escape(f"{name}: mean {_pm()} 95% CI over trials ({result.out / 'summary.csv'})"))
     table.add_column("#", justify="right")
     table.add_column("configuration")
     table.add_column("trials", justify="right")
@@ -84,7 +85,7 @@ def paired_table(result, metrics, units, counts=()):
     from rich.markup import escape
     from rich.table import Table
 
-    table = Table(title=escape(f"paired, b - a: mean ± 95% CI over the same trials, * significant "
+    table = Table(title=escape(f"paired, b - a: mean {_pm()} 95% CI over the same trials, * significant "
                                f"({result.out / 'paired.csv'})"))
     table.add_column("a -> b", justify="right")
     table.add_column("comparison")
@@ -127,4 +128,13 @@ def _mean_ci(mean, ci, scale: float = 1.0, signed: bool = False) -> str:
     if ci is None or not math.isfinite(ci):
         return shown
     ci = ci * scale
-    return f"{shown} ± {ci:.0f}" if ci >= 10 else f"{shown} ± {ci:.2g}"  # no 4.2e+02 for 420
+    return f"{shown} {_pm()} {ci:.0f}" if ci >= 10 else f"{shown} {_pm()} {ci:.2g}"  # no 4.2e+02 for 420
+
+
+def _pm() -> str:
+    """"±", or "+-" where the standard output cannot encode it (an ASCII locale)."""
+    try:
+        "±".encode(sys.stdout.encoding or "ascii")
+        return "±"
+    except (UnicodeEncodeError, LookupError):
+        return "+-"
