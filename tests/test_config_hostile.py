@@ -690,3 +690,13 @@ def test_fusion_work_counts_one_fusion_per_inbox():
     assert coasted["work_fusion"][0] == 32 * fusion_ops(32)
     assert "work_fusion" not in estimate(load_scenario("paper-fig3", base + ["fusion.share=scans"]))
     assert fusion_ops(2) == fusion_ops(1)  # two estimates: a scalar search, no SLSQP
+
+
+def test_an_ospa_whose_cutoff_to_the_order_underflows_is_refused():
+    # 1e-40^10: the one-target OSPA rounded to 0, and the swarm engine's refused it at the first
+    # step in a traceback, after validate had said ok
+    for preset in ("paper-fig3", "swarm-3"):
+        assert _refused(preset, ["metrics.ospa_cutoff=1e-40", "metrics.ospa_order=10"]) == (
+            "--set metrics.ospa_cutoff=1e-40: metrics: ospa_cutoff^ospa_order = 1e-40^10 is below the smallest normal "
+            "float, so the OSPA would round to 0; use a larger ospa_cutoff")
+    assert load_scenario("swarm-3", ["metrics.ospa_cutoff=1e-40"]).metrics.ospa_cutoff == 1e-40  # 1e-80 is fine

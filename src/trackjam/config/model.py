@@ -6,6 +6,7 @@ from __future__ import annotations
 import decimal
 import math
 import numbers
+import sys
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -610,10 +611,20 @@ class Metrics(_Model):
     """Tracking error (Section VI) and track quality judged by the truth (ours)."""
 
     ospa_order: Real(ge=1, le=10) = Field(2.0, description="p of OSPA, in [1, 10]")
-    ospa_cutoff: Length = Field(10.0, description=f"c of OSPA [m], in (0, {MAX_LENGTH:g}]")
+    ospa_cutoff: Length = Field(10.0, description=f"c of OSPA [m], in (0, {MAX_LENGTH:g}], with c^p at least the "
+                                "smallest normal float")
     gate: Length = Field(
         5.0, description=f"track quality (ours): held = confirmed and within gate of the truth [m], in (0, {MAX_LENGTH:g}]"
     )
+
+    @model_validator(mode="after")
+    def _representable(self) -> "Metrics":
+        # c^p below the smallest normal float: the OSPA rounded to 0 (one target) or the swarm
+        # engine's OSPA refused it at the first step, after validate had said ok
+        if self.ospa_cutoff ** self.ospa_order < sys.float_info.min:
+            raise ValueError(f"ospa_cutoff^ospa_order = {self.ospa_cutoff:g}^{self.ospa_order:g} is below the "
+                             "smallest normal float, so the OSPA would round to 0; use a larger ospa_cutoff")
+        return self
 
 
 class Oracle(_Model):
