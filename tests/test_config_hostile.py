@@ -63,6 +63,21 @@ def test_the_swarm_constants_mirror_the_engine():
     assert limits.MAX_AIMS == MAX_AIMS
 
 
+def test_the_bounds_the_engines_packages_mirror_are_the_configurations():
+    from trackjam.env import observation
+    from trackjam.estimation import lmb
+    from trackjam.metrics import multi
+    from trackjam.radio import measurement
+
+    assert observation.MAX_AGENTS == limits.MAX_AGENTS
+    assert (lmb.MAX_SPEED, lmb.MAX_ACCEL_VAR) == (limits.MAX_SPEED, limits.MAX_ACCEL_VAR)
+    assert multi.MAX_LENGTH == limits.MAX_LENGTH
+    rate = measurement.CLUTTER_RATE_MAX
+    assert load_scenario("paper-fig3", [f"sensor.clutter_rate={rate}"]).sensor.clutter_rate == rate
+    with pytest.raises(ConfigError, match="clutter_rate"):
+        load_scenario("paper-fig3", [f"sensor.clutter_rate={rate * 1.001}"])
+
+
 def test_the_particle_estimate_bounds_what_the_agents_hold_in_a_short_run():
     from trackjam.simulation.swarm import SwarmSimulation
 

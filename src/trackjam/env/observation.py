@@ -18,8 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackjam.config.limits import MAX_AGENTS
-
+MAX_AGENTS = 64  # the configuration's bound on the team (config/limits.py; tests/test_config_hostile.py holds them equal)
 STATE = ("x", "y", "z", "vx", "vy", "vz")
 MATE_BLOCK = 11  # received flag, position (3), predicted state (6), predicted existence
 

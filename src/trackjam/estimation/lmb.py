@@ -46,7 +46,6 @@ from typing import Sequence
 import numpy as np
 
 from trackjam.arguments import corners, numeric, real, vector, whole
-from trackjam.config.limits import MAX_ACCEL_VAR, MAX_SPEED
 from trackjam.estimation.bernoulli import Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
 from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
@@ -78,6 +77,10 @@ CONE_MARGIN = 1e-6  # [m] a track's particles this far outside a scan's cone ski
 # assignment is cubic in them), 10^6 Gibbs sweeps (the sampler draws sweeps x tracks uniforms at
 # once: 160 MB at 20 tracks) and 10^4 ranked hypotheses (one assignment solved per hypothesis)
 BIRTH_RATE_MAX = CLUTTER_RATE_MAX
+# the configuration's bounds (config/limits.py), mirrored since the engine's packages do not
+# import the configuration (tests/test_layout.py); tests/test_config_hostile.py holds them equal
+MAX_SPEED = 1e3  # m/s
+MAX_ACCEL_VAR = 1e4  # m^2/s^4
 MAX_TRACKS_LIMIT = 1000
 GIBBS_SAMPLES_MAX = 1_000_000
 RANKED_K_MAX = 10_000

@@ -24,12 +24,12 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from trackjam.arguments import numeric, real
-from trackjam.config.limits import MAX_LENGTH
 
 # Per-target, per-step class codes of :func:`target_classes`.
 HELD, MISSED, UNDETECTABLE = range(3)
 TARGET_CLASSES = ("held", "missed", "undetectable")
 
+MAX_LENGTH = 1e5  # m, the configuration's bound on a length (config/limits.py; tests/test_config_hostile.py holds them equal)
 # The arguments' bounds: the cutoff c and the gate are lengths of the configuration, (0,
 # MAX_LENGTH]; the order p lies in [1, ORDER_MAX], ORDER_MAX the largest order at which
 # MAX_LENGTH^p times 10^12 (more points than memory holds) stays a finite float, so that no sum
