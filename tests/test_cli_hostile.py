@@ -85,11 +85,36 @@ def test_a_grid_of_non_ascii_digits_is_refused(tmp_path):
     ],
 )
 def test_a_path_name_past_the_systems_limit_is_one_line(tmp_path, args):
-    # 300 bytes in one name: even Path.exists() raises, where no check of ours looked
+    # 300 bytes in one name: even Path.exists() raises, where no check of ours looked; the line
+    # shows the path by its two ends (it had held all of it) and names the option that gave it
+    from trackjam.errors import ends
+
     long = str(tmp_path / ("x" * 300))
     line = _one_line(_trackjam(*[a.format(long=long) for a in args]))
-    assert line.startswith(f"trackjam: error: {long}") and line.endswith("File name too long")
+    given = next(a.format(long=long) for a in args if "{long}" in a)
+    option = args[args.index(next(a for a in args if "{long}" in a)) - 1]
+    assert len(line) < 250
+    if option.startswith("--"):
+        assert line == (f"trackjam: error: {option} {ends(given)}: too long for the file system: a name of "
+                        f"{len(given) - len(str(tmp_path)) - 1} bytes, past its 255")
+    else:
+        assert line == f"trackjam: error: {ends(given)}: File name too long"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_path_past_the_systems_whole_length_is_named_by_its_option(tmp_path):
+    deep = str(tmp_path / "/".join(["d" * 200] * 25))
+    line = _one_line(_trackjam("run", "paper-fig3", "--out", deep))
+    assert line.startswith(f"trackjam: error: --out {deep[:60]}...") and line.endswith(
+        f"too long for the file system: {len(deep.encode())} bytes in all, past its 4095")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_newline_in_out_stays_in_the_one_line_that_says_what_was_written(tmp_path):
+    out = tmp_path / "new\nline"
+    r = _trackjam("run", "paper-fig3", "--set", "steps=2", "--no-figures", "--out", str(out))
+    assert r.returncode == 0
+    assert r.stdout.splitlines()[-1] == f"wrote 5 files to {tmp_path}/new\\nline"
 
 
 @pytest.mark.parametrize("args", [["show-config", "swarm-3"], ["presets"], ["validate", "paper-fig3"],

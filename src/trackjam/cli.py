@@ -136,8 +136,10 @@ def user_errors(fn: Callable) -> Callable:
             # a path the user gave that the system refuses where no check looked (a name past 255
             # bytes fails even Path.exists()), or the standard output on a full disk (`> /dev/full`);
             # any other OSError without a file name is not the user's
-            if err.filename is not None:
-                _fail(f"{err.filename}: {err.strerror or err}")
+            if err.filename is not None:  # a path of thousands of characters is shown by its two ends
+                from trackjam.errors import ends
+
+                _fail(f"{ends(str(err.filename))}: {err.strerror or err}")
             if _full_disk(err):
                 _fail(_full_disk(err))
             raise
@@ -184,6 +186,12 @@ def _path_option(option: str, value: str | None, what: str = "folder") -> Path |
 
         default = f", or drop {option} for the default one" if what == "folder" else ""
         raise ConfigError(f"{option} '': an empty path; name a {what}{default}")
+    from trackjam.files import too_long
+
+    if why := too_long(Path(value)):
+        from trackjam.errors import ConfigError, ends
+
+        raise ConfigError(f"{option} {ends(value)}: {why}")
     return Path(value)
 
 
@@ -355,7 +363,7 @@ def run(
     m = result.summary
     if "n_targets" in m:
         Console(width=100).print(_swarm_table(s, m))
-        typer.echo(f"wrote {len(files)} files to {out}")
+        typer.echo(f"wrote {len(files)} files to {printable(str(out))}")
         return
     table = Table(title=escape(f"{s.name}  seed {s.seed}  solver {s.control.solver}"))
     table.add_column("metric")
@@ -374,7 +382,7 @@ def run(
     if m.get("downed_at") is not None:
         add("target downed at step", str(m["downed_at"]))
     Console(width=100).print(table)
-    typer.echo(f"wrote {len(files)} files to {out}")
+    typer.echo(f"wrote {len(files)} files to {printable(str(out))}")
 
 
 def _ospa_label(s) -> str:

@@ -6,6 +6,12 @@ def shortened(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def ends(text: str, keep: int = 60) -> str:
+    """``text``, or its first and last ``keep`` characters around "..." when it is longer: a path
+    of thousands of characters in a message, where its two ends say which it is."""
+    return text if len(text) <= 2 * keep + 3 else f"{text[:keep]}...{text[-keep:]}"
+
+
 def printable(text: str) -> str:
     """``text`` with its control characters escaped (a newline as ``\\n``): a message echoes the
     user's --set items, paths and file names as given, and a newline split its one line, an

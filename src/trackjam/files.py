@@ -14,6 +14,25 @@ from trackjam.errors import ConfigError, shortened
 TEMP_MARK = ".tmp"
 
 
+NAME_MAX, PATH_MAX = 255, 4096  # bytes of one name and of a whole path (Linux's; the name's from os.pathconf where it answers)
+
+
+def too_long(path: Path) -> str | None:
+    """Why the system cannot hold ``path`` (a name past NAME_MAX bytes, or the whole past
+    PATH_MAX: even Path.exists() raises on them), for a message; None when it can."""
+    text = os.fsencode(os.path.abspath(path))
+    try:
+        name_max = os.pathconf("/", "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):  # no pathconf (Windows) or no answer
+        name_max = NAME_MAX
+    longest = max(len(part) for part in text.split(b"/"))
+    if longest > name_max:
+        return f"too long for the file system: a name of {longest} bytes, past its {name_max}"
+    if len(text) >= PATH_MAX:
+        return f"too long for the file system: {len(text)} bytes in all, past its {PATH_MAX - 1}"
+    return None
+
+
 def existing_folder(path: Path, where: str) -> Path:
     """The nearest existing path at or above ``path`` (absolute), where a folder to write in
     would be made; a file there, or a symbolic link on the way that leads nowhere (a missing

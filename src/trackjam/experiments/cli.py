@@ -7,6 +7,7 @@ import re
 import sys
 from pathlib import Path
 
+from trackjam.errors import printable
 from trackjam.experiments.engine import run_experiment
 from trackjam.experiments.definitions import get_experiment
 
@@ -45,7 +46,8 @@ def experiment_command(
         out=out if out is not None else Path("runs") / f"experiment-{name}", overrides=overrides, grid=grid,
     )
     # escaped: rich read a [bracketed] part of the --out path as markup and dropped it
-    table = Table(title=escape(f"{name}: mean {_pm()} 95% CI over trials ({result.out / 'summary.csv'})"))
+    summary = printable(str(result.out / "summary.csv"))
+    table = Table(title=escape(f"{name}: mean {_pm()} 95% CI over trials ({summary})"))
     table.add_column("#", justify="right")
     table.add_column("configuration")
     table.add_column("trials", justify="right")
@@ -70,9 +72,9 @@ def experiment_command(
             applying = tuple(c for c in experiment.counts if any(row[f"{c[0]}_of"] for row in result.summary))
             console.print(paired_table(result, experiment.metrics, units, applying))
         else:
-            print(f"{len(result.paired)} paired comparisons in {result.out / 'paired.csv'}")
+            print(f"{len(result.paired)} paired comparisons in {printable(str(result.out / 'paired.csv'))}")
     ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
-    print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {result.out}")
+    print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {printable(str(result.out))}")
 
 
 MAX_PAIRS_SHOWN = 16  # more (the swarm grid's 36) stay in paired.csv
@@ -86,7 +88,7 @@ def paired_table(result, metrics, units, counts=()):
     from rich.table import Table
 
     table = Table(title=escape(f"paired, b - a: mean {_pm()} 95% CI over the same trials, * significant "
-                               f"({result.out / 'paired.csv'})"))
+                               f"({printable(str(result.out / 'paired.csv'))})"))
     table.add_column("a -> b", justify="right")
     table.add_column("comparison")
     table.add_column("trials", justify="right")
