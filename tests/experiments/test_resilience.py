@@ -507,3 +507,57 @@ def test_summarising_a_folder_without_an_intact_trial_is_one_line(fresh, tmp_pat
     with pytest.raises(ConfigError, match=r"trials: no intact trial of this experiment, nothing to summarise \(4 damaged"):
         summarise_folder(out)
     assert (out / "summary.csv").read_bytes() == before
+
+
+def test_a_rerun_removes_what_killed_writes_of_the_results_left_at_the_top(tmp_path):
+    # a SIGKILL while the figure was written left .fig5.png.<random>.tmp.png, and it stayed
+    # after a successful rerun (the leftovers in trials/ were removed)
+    out = tmp_path / "e"
+    run_experiment("constraints", trials=1, steps=2, workers=1, out=out, progress="none")
+    left = [out / ".fig5.png.m4kupqju.tmp.png", out / ".summary.csv.ab12cd34.tmp.csv",
+            out / ".experiment.json.zz99yy88.tmp.json"]
+    for p in left:
+        p.write_bytes(b"half")
+    mine = [out / ".notes", out / ".fig5.png.backup"]  # a user's dot files are not ours
+    for p in mine:
+        p.write_text("keep")
+    r = run_experiment("constraints", trials=1, steps=2, workers=1, out=out, progress="none")
+    assert r.ran == 0
+    assert not any(p.exists() for p in left)
+    assert all(p.read_text() == "keep" for p in mine)
+
+
+def test_a_lost_scheduler_is_one_line_and_the_trials_written_resume(tmp_path):
+    # a scheduler killed mid-sweep: Dask's client logged its reconnection tracebacks and the
+    # sweep ended in a CancelledError traceback, exit status 1
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    sched = start(["-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port),
+                   "--no-dashboard"])
+    worker = start(["-m", "distributed.cli.dask_worker", address, "--nthreads", "1", "--no-dashboard", "--no-nanny"])
+    out = tmp_path / "e"
+    try:
+        from distributed import Client
+
+        client = Client(address, timeout=30)
+        client.wait_for_workers(1, timeout=60)
+        client.close()
+        p = subprocess.Popen([sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "4", "--steps",
+                              "10", "--scheduler", address, "--out", str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+        wait_for_files(out / "trials", 1, p, limit_s=120)
+        kill(sched)
+        _, err = p.communicate(timeout=120)
+    finally:
+        kill(worker)
+        kill(sched)
+    assert p.returncode == 2, err
+    assert "Traceback" not in err and "ERROR" not in err, err
+    errors = [line for line in err.splitlines() if line.startswith("trackjam: error")]
+    assert len(errors) == 1 and re.fullmatch(
+        rf"trackjam: error: --scheduler {re.escape(address)}: lost the Dask scheduler \(\w+\); the trials written are "
+        r"intact: run the same command again to resume", errors[0]), err
+    written = len(list((out / "trials").glob("c*.parquet")))
+    assert written >= 1
+    r = run_experiment("constraints", trials=4, steps=10, workers=1, out=out, progress="none")
+    assert r.ran == 8 - written

@@ -26,9 +26,10 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
-from trackjam.errors import ConfigError, shortened
+from trackjam.errors import ConfigError, OutputError, shortened
 
 CONNECT_TIMEOUT_S = 5.0
+LOST_CHECK_S = 2.0  # after a sweep's error: the time the scheduler is given to answer before it counts as lost
 HANDSHAKE_MAX_BYTES = 1 << 20  # a scheduler's handshake is ~60 bytes; garbage reads as exabytes
 PARENT_POLL_S = 0.2
 # Dask schemes over TCP whose server waits for the client: a refused port is found at once, as for tcp
@@ -303,10 +304,37 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
         _discard(client)
         msg = " ".join(str(err).split()) or type(err).__name__
         raise ConfigError(f"cannot reach the Dask scheduler at {address}: {msg}") from None
+    quiet = _quiet_client_log()
     try:
         if not client.scheduler_info().get("workers"):  # else the sweep would wait without a word
             print(f"trackjam: the Dask scheduler at {address} has no workers yet; the trials wait for one",
                   file=sys.stderr, flush=True)
         yield client.get_executor(), 1 << 30  # the scheduler balances the load: submit everything
+    except Exception as err:  # noqa: BLE001 - what Dask raises on a lost connection varies (CancelledError, CommClosedError)
+        if _reachable(address):
+            raise  # a trial's own error, or a failure of ours: not the scheduler's
+        raise OutputError(f"--scheduler {address}: lost the Dask scheduler ({type(err).__name__}); the trials "
+                          "written are intact: run the same command again to resume") from None
     finally:
-        client.close()
+        _discard(client)
+        quiet()
+
+
+def _reachable(address: str) -> bool:
+    """The scheduler at ``address`` still answers (a short pre-flight, :func:`check_dask_scheduler`)."""
+    try:
+        check_dask_scheduler(address, LOST_CHECK_S)
+        return True
+    except ConfigError:
+        return False
+
+
+def _quiet_client_log() -> Callable[[], None]:
+    """Keep Dask's client from logging its reconnection attempts, tracebacks and all, while a sweep
+    runs: a lost scheduler is said in one line of ours. Returns what restores the log level."""
+    import logging
+
+    log = logging.getLogger("distributed.client")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    return lambda: log.setLevel(level)

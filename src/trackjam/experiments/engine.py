@@ -413,11 +413,27 @@ def run_experiment(
         executor, window = stack.enter_context(open_executor(workers, scheduler))
         _claim(out, params)
         stack.enter_context(_locked(out))
+        _remove_leftovers(out, experiment)
         folder = out / "trials"
         records, todo, notes = _resume(folder, experiment, scenarios, report)
         _run_trials(executor, window, trial, name, experiment, scenarios, todo, folder, records, report)
+        # still under the lock: a sweep starting now removes no temporary file of these writes
+        return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes)
 
-    return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes)
+
+RESULT_FILES = ("experiment.json", "summary.csv", "timing.csv", "paired.csv")
+
+
+def _remove_leftovers(out: Path, experiment: Experiment) -> None:
+    """Remove the temporary files that killed writes of OUT's own files left (a SIGKILL while
+    the summary or the figure was written left ``.fig4.png.m4kupqju.tmp.png`` for good); a
+    user's dot file is left alone. Called under the sweep's lock."""
+    for p in out.iterdir():
+        if p.is_file() and any(is_temporary_of(p, name) for name in (*RESULT_FILES, experiment.figure)):
+            try:
+                p.unlink(missing_ok=True)
+            except OSError:  # a read-only OUT (an archived sweep): the leftover harms nothing
+                pass
 
 
 def _check_arguments(trials: int, steps: int, seed: int, workers: int | None, scheduler: str | None) -> None:
