@@ -295,18 +295,18 @@ def test_grasp_work_is_checked_only_for_grasp():
 
 
 def test_messages_in_flight_count_in_the_memory_check(monkeypatch):
-    """comms.delay_steps holds every message of delay_steps steps: 64 agents at the 1000-step
+    """comms.delay_steps holds every message of delay_steps steps: 48 agents at the 1000-step
     bound is gigabytes, which the check must see; the estimate bounds what a short run holds."""
     import tracemalloc
 
     from trackjam.config import limits
     from trackjam.simulation.engine import Simulation
 
-    # (comms.stale: drop, so that the agents fuse one inbox a step: with coast each fuses its own
-    # 64 estimates, past the work cap)
+    # (48 agents, each planning from its own inbox under the delay, and comms.stale: drop, so
+    # that they fuse one inbox a step: 64 agents, or coasting, are past the work cap)
     big = load_scenario("paper-fig3", ["comms.delay_steps=1000", "steps=1005", "control.solver=exact",
                                        "comms.stale=drop",
-                                       f"agents.initial={[[50.0, 50.0, 10.0 + i] for i in range(64)]}"])
+                                       f"agents.initial={[[50.0, 50.0, 10.0 + i] for i in range(48)]}"])
     assert limits.estimate(big)["memory_messages"][0] > 1e9
     assert "memory_messages" not in limits.estimate(load_scenario("paper-fig3"))
     monkeypatch.setattr(limits, "memory_budget", lambda: 200e6)

@@ -7,7 +7,7 @@ estimates for fusion (the paper's Fig. 2 and Section V-D).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,12 +53,17 @@ class Agent:
     last_track: np.ndarray | None = None  # fused state [x, y, z, vx, vy, vz] when last tracked
     last_track_cov: np.ndarray | None = None
     steps_since_track: int = 0
+    # the last coasted track (accel_var, steps, mean, cov): the next step's coast goes on from it,
+    # one step, where coasting from the track each step made a long search quadratic in its
+    # length (49 ms a step after 6,000 steps); the same products in the same order, so the same bits
+    _coasted: tuple | None = field(default=None, repr=False, compare=False)
 
     def remember(self, existence: float, mean: np.ndarray | None, cov: np.ndarray | None) -> None:
         """Keep the team's last confirmed estimate, to search where the target has coasted to."""
         if existence > CONFIRM and mean is not None:
             self.last_track, self.last_track_cov = np.array(mean, dtype=float), np.array(cov, dtype=float)
             self.steps_since_track = 0
+            self._coasted = None
         else:
             self.steps_since_track += 1
 
@@ -66,7 +71,12 @@ class Agent:
         """The last confirmed estimate predicted to now by Eq. (1)."""
         if self.last_track is None:
             return None
-        return cv_coast(self.last_track, self.last_track_cov, accel_var, self.steps_since_track)
+        k, x, P = 0, self.last_track, self.last_track_cov
+        if self._coasted is not None and self._coasted[0] == accel_var and self._coasted[1] <= self.steps_since_track:
+            _, k, x, P = self._coasted
+        x, P = cv_coast(x, P, accel_var, self.steps_since_track - k)
+        self._coasted = (accel_var, self.steps_since_track, x, P)
+        return x.copy(), P.copy()  # the caller's to change; the kept ones stay as coasted
 
     @classmethod
     def create(cls, index: int, position, aim, bf: BernoulliFilter, cue: tuple[float, float, float] | None,
