@@ -738,3 +738,13 @@ def test_grasps_neighbour_lists_and_the_swarm_planners_copies_count_in_the_memor
     N, aims = 5, 3
     once = 8.0 * (N * N * (aims * C) ** 2 + aims * (N * N * C * C + 2 * N * C * 4 + N))
     assert swarm == 3 * once  # measured: about three copies at once (7.6 GB at 64 agents, 2.5 GB counted once)
+
+
+def test_a_warning_about_many_items_names_three_and_counts_the_rest():
+    # 1000 late failures had made one warning line of 20,961 characters
+    from trackjam.config.warnings import scenario_warnings
+
+    failures = "comms.failures=[" + ",".join(f"{{agent: 0, step: {40 + k}, mode: channel}}" for k in range(1000)) + "]"
+    lines = scenario_warnings(load_scenario("paper-fig3", [failures]))
+    assert "comms.failures[0], comms.failures[1], comms.failures[2] and 997 more: start after the last step (30); " \
+           "the agent never fails" in lines

@@ -5,6 +5,8 @@ from __future__ import annotations
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from fake_run import AGENT_COLUMNS, STEP_COLUMNS, fake_run
 from matplotlib.figure import Figure
 
@@ -295,3 +297,14 @@ def test_the_figure_names_settings_that_are_not_a_runs():
     steps, agents, _ = fake_run()
     with pytest.raises(TypeError, match="^fs: expected the run's FigureSettings"):
         plot_run(steps, agents, None, "x.png")
+
+
+@given(st.sets(st.integers(1, 60)))
+def test_the_shaded_spans_are_the_runs_of_consecutive_steps(ks):
+    # one span per step had made a 100,000-step figure take minutes and gigabytes
+    from trackjam.viz.figure import _spans
+
+    spans = _spans(sorted(ks))
+    covered = [k for first, last in spans for k in range(first, last + 1)]
+    assert covered == sorted(ks)  # every step once, in order
+    assert all(b[0] > a[1] + 1 for a, b in zip(spans, spans[1:]))  # runs apart: no two could merge

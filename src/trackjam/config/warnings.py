@@ -23,10 +23,10 @@ def scenario_warnings(s: Scenario) -> list[str]:
             out.append(f"{key}.appears: step {t.appears} comes after the last step ({s.steps}); the target never appears")
         late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps]
         if late:
-            out.append(f"{key}.occlusions: {', '.join(late)} reach past the last step ({s.steps})")
+            out.append(f"{key}.occlusions: {_few(late)} reach past the last step ({s.steps})")
     late = [f"comms.failures[{k}]" for k, f in enumerate(s.comms.failures) if f.step > s.steps]
     if late:
-        out.append(f"{', '.join(late)}: start after the last step ({s.steps}); the agent never fails")
+        out.append(f"{_few(late)}: start after the last step ({s.steps}); the agent never fails")
     c = s.control
     if c.belief_at_least is not None and c.plan_over != "belief":
         out.append(f"control.belief_at_least: {c.belief_at_least} has no effect under control.plan_over: {c.plan_over} "
@@ -39,6 +39,12 @@ def scenario_warnings(s: Scenario) -> list[str]:
         at.setdefault(tuple(u), []).append(j)
     for u, js in at.items():
         if len(js) > 1:
-            which = ", ".join(f"[{j}]" for j in js)
+            which = _few([f"[{j}]" for j in js])
             out.append(f"agents.initial: {which} start at the same position {list(u)}")
     return out
+
+
+def _few(items: list[str], shown: int = 3) -> str:
+    """The first ``shown`` items and how many more: 1000 late failures had made a warning of
+    20,961 characters."""
+    return ", ".join(items[:shown]) + (f" and {len(items) - shown} more" if len(items) > shown else "")

@@ -221,10 +221,10 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
     _panel_cones(ax_g, steps, agents, fs, T, N, k_g, f"(g) step {k_g}: {why_g}")
     _panel_cones(ax_h, steps, agents, fs, T, N, k_h, f"(h) step {k_h}: {why_h}")
 
-    occ = occluded_steps(steps)
+    occ = _spans(occluded_steps(steps))
     for ax in axes:
-        for k in occ:
-            ax.axvspan(k - 0.5, k + 0.5, color=OCCLUSION_COLOUR, alpha=0.18, lw=0, zorder=0)
+        for first, last in occ:
+            ax.axvspan(first - 0.5, last + 0.5, color=OCCLUSION_COLOUR, alpha=0.18, lw=0, zorder=0)
         ax.set_xlim(0.5, T + 0.5)
         ax.grid(True, alpha=0.3)
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
@@ -358,11 +358,23 @@ def _panel_powers(ax, steps, agents, fs, t, T, N) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
 
 
+def _spans(ks) -> list[tuple[int, int]]:
+    """The runs of consecutive steps in ``ks`` (sorted) as (first, last): one shaded span each,
+    where a span per step had made a 100,000-step figure take minutes and gigabytes."""
+    ks = np.asarray(ks, dtype=np.int64).ravel()
+    if ks.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(ks) != 1)
+    starts = np.concatenate([[0], breaks + 1])
+    ends = np.concatenate([breaks, [ks.size - 1]])
+    return [(int(ks[a]), int(ks[b])) for a, b in zip(starts, ends)]
+
+
 def _panel_existence(ax, steps, agents, t, T, N) -> None:
     """(e) fused existence probability (mean of the agents' e, Section V-A) and the truth."""
     exists = np.asarray(steps["target_exists"], dtype=bool)
-    for k in t[exists]:
-        ax.axvspan(k - 0.5, k + 0.5, color="#2ca02c", alpha=0.12, lw=0, zorder=0)
+    for first, last in _spans(t[exists]):
+        ax.axvspan(first - 0.5, last + 0.5, color="#2ca02c", alpha=0.12, lw=0, zorder=0)
     own = agent_table(agents, "existence", T, N)
     for j in range(N):
         ax.plot(t, own[:, j], color=agent_colour(j), lw=0.8, alpha=0.6)
@@ -395,8 +407,9 @@ def _panel_quality(ax, steps, fs, t) -> None:
     target is hidden or absent), silent (no report then)."""
     gate = fs.gate
     names = np.asarray(CLASSES)[step_classes(steps, gate)]
-    for k, name in zip(t, names):
-        ax.axvspan(k - 0.5, k + 0.5, color=QUALITY_COLOURS[name], lw=0, zorder=1)
+    for name in dict.fromkeys(names):
+        for first, last in _spans(t[names == name]):
+            ax.axvspan(first - 0.5, last + 0.5, color=QUALITY_COLOURS[name], lw=0, zorder=1)
     ax.set_ylim(0, 1)
     ax.set_yticks([])
     ax.set_title(f"(i) track quality judged by the truth (gate {gate:g} m)", loc="left", fontsize=10)
