@@ -326,5 +326,5 @@ def test_messages_in_flight_count_in_the_memory_check(monkeypatch):
         held = tracemalloc.get_traced_memory()[0]
     finally:
         tracemalloc.stop()
-    assert len(sim.team.exchange.pending) == 8 * 7 * 3 * 20
+    assert sum(len(waiting) for waiting in sim.team.exchange.pending.values()) == 8 * 7 * 3 * 20
     assert held <= limits.estimate(s)["memory_messages"][0] + 20e6  # the rest of a small run
