@@ -701,3 +701,14 @@ def test_an_ascii_output_gets_the_experiments_table_in_ascii(tmp_path):
     assert r.returncode == 0 and b"Traceback" not in r.stderr, r.stderr.decode(errors="replace")
     assert b"mean +- 95% CI" in r.stdout and b" +- " in r.stdout
     assert r.stdout.isascii()
+
+
+def test_a_team_that_never_transmits_is_warned_about(tmp_path):
+    # at a 60 dBW top level no plan is worth more than silence, and the antennas stay off
+    # for the whole run: the table showed held steps (the cue's estimate, coasted) without a word
+    r = _trackjam("run", "paper-fig3", "--set", "antenna.power_levels_db=[off, 60]", "--set", "steps=2",
+                  "--no-figures", "--out", str(tmp_path / "r"))
+    assert r.returncode == 0, r.stderr
+    assert "trackjam: warning: the team never transmitted (mean transmit power 0 W)" in r.stderr
+    ok = _trackjam("run", "paper-fig3", "--set", "steps=2", "--no-figures", "--out", str(tmp_path / "ok"))
+    assert ok.returncode == 0 and "never transmitted" not in ok.stderr

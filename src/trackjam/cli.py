@@ -382,6 +382,10 @@ def run(
     if m.get("downed_at") is not None:
         add("target downed at step", str(m["downed_at"]))
     Console(width=100).print(table)
+    if m["transmit_w_mean"] == 0.0:  # a team that never sent senses nothing: every plan was worth 0
+        typer.echo("trackjam: warning: the team never transmitted (mean transmit power 0 W), so no agent sensed "
+                   "anything: at these settings no plan was worth more than hovering silent (see the antenna's "
+                   "levels, interference limit and r0); its estimates are the cue's, coasted", err=True)
     typer.echo(f"wrote {len(files)} files to {printable(str(out))}")
 
 
