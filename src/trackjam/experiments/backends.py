@@ -264,8 +264,10 @@ def _check_handshake(payload: bytes) -> None:
 
 
 def _discard(client) -> None:
-    """Close a client whose construction failed, so that nothing is left for its ``__del__``:
-    its loop thread stopped and its status ``closed`` (``__del__`` then does nothing)."""
+    """Close a client whose construction failed, or whose sweep is over (its scheduler perhaps
+    lost: ``close`` then raises or waits, bounded here by CONNECT_TIMEOUT_S), so that nothing is
+    left for its ``__del__``: its loop thread stopped and its status ``closed`` (``__del__``
+    then does nothing)."""
     try:
         client.close(timeout=CONNECT_TIMEOUT_S)
     except Exception:  # noqa: BLE001 - a half-built client may lack what close() reads
