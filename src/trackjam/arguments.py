@@ -71,9 +71,9 @@ def numeric(name: str, value) -> np.ndarray:
         a = np.asarray(value)
         if isinstance(value, (list, tuple)) and a.dtype.kind in "iuf":  # numpy reads [1.0, True] as numbers
             if any(isinstance(v, (bool, np.bool_)) for v in np.asarray(value, dtype=object).ravel()):
-                raise TypeError(f"{name}: expected numbers, got a bool among them: {_shown(value)}")
+                raise TypeError(f"{name}: expected numbers, got a bool among them: {shown(value)}")
     except ValueError:  # a ragged list
-        raise TypeError(f"{name}: expected numbers in a regular array, got {type(value).__name__} {_shown(value)}") from None
+        raise TypeError(f"{name}: expected numbers in a regular array, got {type(value).__name__} {shown(value)}") from None
     if a.dtype.kind not in "iuf":
         try:
             if a.dtype.kind != "O":
@@ -82,11 +82,12 @@ def numeric(name: str, value) -> np.ndarray:
                 raise TypeError
             return a.astype(float)
         except (TypeError, ValueError):
-            raise TypeError(f"{name}: expected numbers, got {type(value).__name__} {_shown(value)}") from None
+            raise TypeError(f"{name}: expected numbers, got {type(value).__name__} {shown(value)}") from None
     return a.astype(float, copy=False)
 
 
-def _shown(value) -> str:
+def shown(value) -> str:
+    """``value`` (an array as its list) as it is written, cut to 40 characters, for a message."""
     text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
     return text if len(text) <= 40 else text[:37] + "..."
 
@@ -156,9 +157,9 @@ def text_path(name: str, value, what: str = "a file's path") -> str:
     deep in the write) are refused naming ``name``."""
     path = os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
     if not isinstance(path, str):
-        raise TypeError(f"{name}: expected {what} as text, got {type(value).__name__} {_shown(value)}")
+        raise TypeError(f"{name}: expected {what} as text, got {type(value).__name__} {shown(value)}")
     if not path:
         raise ValueError(f"{name}: expected {what}, got an empty text")
     if "\x00" in path:
-        raise ValueError(f"{name}: holds a NUL character, which no path may: {_shown(path)}")
+        raise ValueError(f"{name}: holds a NUL character, which no path may: {shown(path)}")
     return path

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackjam.arguments import amounts, numeric, points, real, together
+from trackjam.arguments import amounts, numeric, points, real, shown, together
 from trackjam.radio.antenna import AntennaModel, detection_probability, received_power
 
 
@@ -193,17 +193,12 @@ def _flags(name: str, value, k: int) -> np.ndarray:
     a = np.asarray(value)
     if a.dtype != bool and a.size:  # an empty list (no target) is read as floats
         if a.dtype.kind not in "iu":
-            raise TypeError(f"{name}: expected booleans (or 0 and 1), one per target, got {a.dtype} {_shown(a)}")
+            raise TypeError(f"{name}: expected booleans (or 0 and 1), one per target, got {a.dtype} {shown(a)}")
         if not np.all((a == 0) | (a == 1)):
-            raise ValueError(f"{name}: expected booleans (or 0 and 1), got {_shown(a)}")
+            raise ValueError(f"{name}: expected booleans (or 0 and 1), got {shown(a)}")
     if a.shape != (k,):
         raise ValueError(f"{name}: expected one entry per target ({k}), got shape {a.shape}")
     return a.astype(bool, copy=False)
-
-
-def _shown(a: np.ndarray) -> str:
-    text = repr(a.tolist())
-    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _exposure_arguments(X, exists, detectable, u, aim, level_w, ant):
