@@ -13,11 +13,13 @@ from matplotlib.figure import Figure
 from trackjam.config import load_scenario
 from trackjam.viz.figure import (
     _panel_cones,
+    _panel_jamming,
     _panel_powers,
     _panel_trajectories,
     agent_positions,
     agent_table,
     interference_per_step,
+    jamming_events,
     level_labels,
     occluded_steps,
     path_box,
@@ -158,6 +160,46 @@ def test_recomputed_interference_matches_the_logged_total_and_jamming(run):
     # an antenna that is off sends nothing
     off = agent_table(agents, "power_w", T, N) == 0
     assert np.all(R.transpose(0, 2, 1)[off] == 0)
+
+
+def test_interference_at_chosen_steps_is_those_rows_of_every_steps(run):
+    steps, agents, scenario = run
+    fs = figure_settings(scenario)
+    R = interference_per_step(agents, fs)
+    at = np.array([scenario.steps - 1, 0, 2, 2])
+    np.testing.assert_array_equal(interference_per_step(agents, fs, at), R[at])
+    assert interference_per_step(agents, fs, np.array([], int)).shape == (0, scenario.n_agents, scenario.n_agents)
+
+
+@pytest.mark.parametrize("chunk", [1, 2, 3, 1024])
+def test_jamming_events_taken_in_chunks_are_those_of_the_whole_array(run, chunk):
+    """The figure's panel (c) never holds the (T, N, N) array: its events, found a chunk of steps
+    at a time, are those found on the whole array."""
+    steps, agents, scenario = run
+    fs = figure_settings(scenario)
+    R = interference_per_step(agents, fs)
+    delta = fs.antenna.delta_w
+    k, i, j = np.nonzero(R >= delta)
+    only = (R.sum(axis=2) >= delta) & ~(R >= delta).any(axis=2)
+    ko, io = np.nonzero(only)
+    (pt, pi, pj), (ot, oi) = jamming_events(agents, fs, chunk=chunk)
+    assert len(k) > 0  # the fake run has pairs that jam
+    assert sorted(zip(pt.tolist(), pi.tolist(), pj.tolist())) == sorted(zip((k + 1).tolist(), i.tolist(), j.tolist()))
+    assert sorted(zip(ot.tolist(), oi.tolist())) == sorted(zip((ko + 1).tolist(), io.tolist()))
+
+
+def test_panel_c_marks_each_pair_that_jams_at_its_steps(run):
+    steps, agents, scenario = run
+    fs = figure_settings(scenario)
+    T, N = scenario.steps, scenario.n_agents
+    R = interference_per_step(agents, fs)
+    ax = Figure().add_subplot()
+    _panel_jamming(ax, agents, fs, T, N)
+    marks = [c for c in ax.collections if c.get_offsets().shape[0] > 0]
+    drawn = sorted(float(x) for c in marks for x in c.get_offsets()[:, 0])
+    pairs = np.nonzero(R >= fs.antenna.delta_w)[0] + 1
+    only = np.nonzero((R.sum(axis=2) >= fs.antenna.delta_w) & ~(R >= fs.antenna.delta_w).any(axis=2))[0] + 1
+    assert drawn == sorted(float(t) for t in np.concatenate([pairs, only])) and drawn
 
 
 def test_fake_run_exercises_jamming_and_occlusion(run):

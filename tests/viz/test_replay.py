@@ -127,15 +127,20 @@ def test_one_frame_per_step_with_title_and_cones(run):
             assert drawn == (power[k, j] > 0)  # an antenna that is off draws no cone
 
 
-def test_jammed_agents_and_jamming_links_follow_the_logs(run):
+@pytest.mark.parametrize("max_frames", [None, 3])
+def test_jammed_agents_and_jamming_links_follow_the_logs(run, max_frames):
+    """Each frame shows its own step's jamming, also when only some steps get a frame."""
     steps, agents, scenario = run
-    fig = replay_figure(steps, agents, figure_settings(scenario))
     T, N = scenario.steps, scenario.n_agents
+    max_frames = max_frames or T
+    fig = replay_figure(steps, agents, figure_settings(scenario), max_frames=max_frames)
     R = interference_per_step(agents, figure_settings(scenario))
     delta = antenna_model(scenario).delta_w
     jammed = agents["jammed"].reshape(T, N)
     x = agents["x"].reshape(T, N)
-    for k, frame in enumerate(fig["frames"]):
+    assert len(fig["frames"]) == min(T, max_frames)
+    for f, frame in enumerate(fig["frames"]):
+        k = int(frame["name"]) - 1
         by_name = {tr["name"]: tr for tr in frame["data"]}
         ring = by_name["jammed agent (red ring)"]
         ring_x = np.asarray(ring["x"], dtype=float)

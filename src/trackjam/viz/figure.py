@@ -126,13 +126,20 @@ def run_shape(steps: Columns, agents: Columns, fs: FigureSettings) -> tuple[int,
     return T, N
 
 
-def interference_per_step(agents: Columns, fs: FigureSettings) -> np.ndarray:
-    """(T, N, N) ``R[t-1, i, j]``: power agent i receives from agent j at step t [W] (Eq. 13's terms).
+def interference_per_step(agents: Columns, fs: FigureSettings, at: np.ndarray | None = None) -> np.ndarray:
+    """(K, N, N) ``R[k, i, j]``: power agent i receives from agent j [W] (Eq. 13's terms) at the
+    0-based step indices ``at`` (every step when None, K = T).
 
     Recomputed with :func:`interference_matrix` from the logged positions after the move, the
     points the antennas aimed at and the transmit powers, so it is what the loop measured.
     """
-    ant = fs.antenna
+    u, point, level_w = _transmitters(agents)
+    at = np.arange(len(u)) if at is None else np.asarray(at, dtype=int)
+    return _interference_at(u, point, level_w, at, fs)
+
+
+def _transmitters(agents: Columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(T, N, 3) positions after the move, (T, N, 3) aims and (T, N) transmit powers [W]."""
     T = int(np.max(agents["t"]))
     N = int(np.max(agents["agent"])) + 1
     u = agent_positions(agents, T, N)
@@ -140,7 +147,37 @@ def interference_per_step(agents: Columns, fs: FigureSettings) -> np.ndarray:
     level_w = np.nan_to_num(agent_table(agents, "power_w", T, N))
     # An antenna that is off has no meaningful aim: give it one (it sends nothing anyway).
     point = np.where(np.isfinite(point), point, u + np.array([0.0, 0.0, 1.0]))
-    return np.stack([interference_matrix(u[k], point[k], level_w[k], ant) for k in range(T)])
+    return u, point, level_w
+
+
+def _interference_at(u, point, level_w, at: np.ndarray, fs: FigureSettings) -> np.ndarray:
+    N = u.shape[1]
+    out = np.empty((len(at), N, N))
+    for n, k in enumerate(at):
+        out[n] = interference_matrix(u[k], point[k], level_w[k], fs.antenna)
+    return out
+
+
+def jamming_events(agents: Columns, fs: FigureSettings, chunk: int = 1024
+                   ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """Where agents were jammed, from :func:`interference_per_step` taken ``chunk`` steps at a
+    time (the whole (T, N, N) array is 3.3 GB at 100,000 steps of 64 agents):
+    ``(t, i, j)`` of each step t (1-based) at which sender j alone jams receiver i
+    (R_ij >= delta), and ``(t, i)`` of each step at which only the sum over senders does."""
+    delta = fs.antenna.delta_w
+    u, point, level_w = _transmitters(agents)
+    T = len(u)
+    pair: list[np.ndarray] = []
+    only: list[np.ndarray] = []
+    for first in range(0, T, chunk):
+        R = _interference_at(u, point, level_w, np.arange(first, min(first + chunk, T)), fs)
+        hit = R >= delta
+        k, i, j = np.nonzero(hit)
+        pair.append(np.stack([k + first + 1, i, j]).astype(np.int64))
+        k, i = np.nonzero((R.sum(axis=2) >= delta) & ~hit.any(axis=2))
+        only.append(np.stack([k + first + 1, i]).astype(np.int64))
+    p, o = np.concatenate(pair, axis=1), np.concatenate(only, axis=1)
+    return (p[0], p[1], p[2]), (o[0], o[1])
 
 
 def level_labels(fs: FigureSettings) -> list[str]:
@@ -303,19 +340,17 @@ def _panel_levels(ax, agents, fs, t, T, N) -> None:
 def _panel_jamming(ax, agents, fs, T, N) -> None:
     """(c) one row per receiver i: a marker in sender j's colour at steps where j alone jams i
     (R_ij >= delta), a black ring where only the total sum_j R_ij >= delta does."""
-    delta = fs.antenna.delta_w
-    R = interference_per_step(agents, fs)
-    total = R.sum(axis=2)
+    (pair_t, pair_i, pair_j), (only_t, only_i) = jamming_events(agents, fs)
     spread = min(0.3, 0.6 / max(N - 1, 1))
     for i in range(N):
         ax.axhline(i, color="0.85", lw=0.8, zorder=0)
         senders = [j for j in range(N) if j != i]
         for k, j in enumerate(senders):
             dy = (k - (len(senders) - 1) / 2) * spread / 2
-            hit = np.flatnonzero(R[:, i, j] >= delta) + 1
+            hit = pair_t[(pair_i == i) & (pair_j == j)]
             ax.scatter(hit, np.full(len(hit), i + dy), color=agent_colour(j), marker="s", s=28,
                        edgecolor="k", lw=0.4, zorder=3)
-        only_sum = np.flatnonzero((total[:, i] >= delta) & ~(R[:, i, :] >= delta).any(axis=1)) + 1
+        only_sum = only_t[only_i == i]
         ax.scatter(only_sum, np.full(len(only_sum), i), facecolor="none", edgecolor="k",
                    marker="o", s=60, lw=1.2, zorder=3)
     ax.set_yticks(range(N), [f"agent {i + 1}" for i in range(N)])

@@ -102,7 +102,7 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
         data.append(_point(u[k, j], f"agent {j + 1}", agent_colour(j), "circle", 6, text=[label],
                            legendgroup=f"agent{j}",
                            hovertext=[f"agent {j + 1}<br>level {labels[int(idx[k, j])]}"
-                                      f"<br>interference {_db(R[k, j].sum())}"],
+                                      f"<br>interference {_db(R[f, j].sum())}"],
                            hoverinfo="text"))
     for j in range(N):
         data.append(_cone_trace(j, u[k, j], point[k, j], power[k, j] > 0, ant))
@@ -111,7 +111,7 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
     data.append(_point(u[k, hit] if len(hit) else np.full((1, 3), np.nan), "jammed agent (red ring)",
                        JAM_COLOUR, "circle-open", 16))
     seg = []
-    for i, j in zip(*np.nonzero(R[k] >= delta)):
+    for i, j in zip(*np.nonzero(R[f] >= delta)):
         seg += [u[k, j], u[k, i], [np.nan] * 3]
     seg = np.asarray(seg or [[np.nan] * 3], dtype=float).reshape(-1, 3)
     data.append(dict(type="scatter3d", **_xyz(seg), mode="lines", name="jams (sender -> receiver)",
@@ -150,7 +150,7 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
     idx = agent_table(agents, "level_index", T, N)
     power = np.nan_to_num(agent_table(agents, "power_w", T, N))
     jammed = agent_table(agents, "jammed", T, N) > 0.5
-    R = interference_per_step(agents, fs)
+    R = interference_per_step(agents, fs, shown)  # row f is step shown[f]
     labels = level_labels(fs)
 
     every = "" if len(shown) == T else f"   |   {len(shown)} of {T} steps shown"
