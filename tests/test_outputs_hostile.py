@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from trackjam.files import atomic_write
+from trackjam.files import atomic_write, remove_leftover, remove_temporaries
 
 FAST = ["steps=60", "filter.particles=100", "filter.birth_particles=20", "control.solver=greedy"]
 
@@ -238,6 +238,33 @@ def test_atomic_write_refuses_to_replace_what_is_not_a_regular_file(tmp_path):
     atomic_write(tmp_path / "plain", lambda p: p.write_text("x"))  # a new file, and then its replacement
     atomic_write(tmp_path / "plain", lambda p: p.write_text("y"))
     assert (tmp_path / "plain").read_text() == "y"
+
+
+def test_remove_temporaries_takes_only_what_killed_writes_of_the_named_files_left(tmp_path):
+    """The run's and the sweep's clean-up share these: a write killed between the temporary file
+    and its rename leaves ``.NAME.XXXX.tmp.SUFFIX``; a user's dot files and other names stay."""
+    left = tmp_path / ".summary.csv.k3j2.tmp.csv"
+    other = tmp_path / ".paired.csv.k3j2.tmp.csv"  # a temporary of a name not asked for
+    mine = [tmp_path / ".summary.csv", tmp_path / ".summary.csv.notes", tmp_path / "summary.csv"]
+    for p in (left, other, *mine):
+        p.write_text("x")
+    (tmp_path / ".fig4.png.ab12.tmp.png").mkdir()  # a folder of that name is not a temporary file
+    remove_temporaries(tmp_path, ["summary.csv", "fig4.png"])
+    assert not left.exists() and other.exists() and all(p.exists() for p in mine)
+    assert (tmp_path / ".fig4.png.ab12.tmp.png").is_dir()
+
+
+def test_remove_leftover_removes_a_staging_folder_and_never_raises(tmp_path):
+    stage = tmp_path / ".staging.x.tmp"
+    (stage / "sub").mkdir(parents=True)
+    (stage / "sub" / "f").write_text("x")
+    remove_leftover(stage)
+    assert not stage.exists()
+    remove_leftover(tmp_path / "gone")  # already removed by another process: nothing to say
+    link = tmp_path / "link.tmp"
+    link.symlink_to(tmp_path)  # a link to a folder is unlinked, the folder kept
+    remove_leftover(link)
+    assert not link.is_symlink() and tmp_path.is_dir()
 
 
 def test_the_envs_replay_path_refuses_a_pipe_at_construction(tmp_path):

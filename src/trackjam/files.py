@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import tempfile
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable
 
 from trackjam.errors import ConfigError, shortened
 
@@ -105,6 +106,27 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
 def is_temporary_of(p: Path, name: str) -> bool:
     """A leftover of an interrupted :func:`atomic_write` to ``name`` in ``p``'s folder."""
     return p.name.startswith(f".{name}.") and p.name.endswith(TEMP_MARK + Path(name).suffix)
+
+
+def remove_leftover(p: Path) -> None:
+    """Remove what a killed write left: a temporary file (:func:`is_temporary_of`) or a staging
+    folder. A folder that is read-only (an archived run or sweep) keeps it: it harms nothing."""
+    try:
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def remove_temporaries(folder: Path, names: Iterable[str]) -> None:
+    """Remove the temporary files that killed :func:`atomic_write` calls to ``names`` left in
+    ``folder``; a user's dot file is left alone."""
+    names = tuple(names)
+    for p in folder.iterdir():
+        if p.is_file() and any(is_temporary_of(p, name) for name in names):
+            remove_leftover(p)
 
 
 def current_umask() -> int:

@@ -63,7 +63,16 @@ from trackjam.experiments.summary import (
     write_table,
     write_trial,
 )
-from trackjam.files import atomic_write, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
+from trackjam.files import (
+    atomic_write,
+    check_writable,
+    existing_folder,
+    is_temporary_of,
+    kind_of,
+    remove_leftover,
+    remove_temporaries,
+    taken_by,
+)
 
 TrialFunction = Callable[[Scenario], Mapping[str, Any]]
 
@@ -283,10 +292,7 @@ def _read_back(folder: Path, experiment: Experiment, scenarios: Mapping[tuple[in
     damaged, foreign, stale, other = [], [], [], []
     for p in sorted(folder.iterdir()):
         if _leftover(p):
-            try:
-                p.unlink(missing_ok=True)
-            except OSError:  # a read-only trials/ (an archived sweep): the leftover harms nothing
-                pass
+            remove_leftover(p)
             continue
         key = parse_trial_filename(p.name)
         if key is not None and key in scenarios and p.is_symlink() and not p.exists():
@@ -413,7 +419,8 @@ def run_experiment(
         executor, window = stack.enter_context(open_executor(workers, scheduler))
         _claim(out, params)
         stack.enter_context(_locked(out))
-        _remove_leftovers(out, experiment)
+        # what killed writes of OUT's summary or figure left (.fig4.png.m4kupqju.tmp.png)
+        remove_temporaries(out, (*RESULT_FILES, experiment.figure))
         folder = out / "trials"
         records, todo, notes = _resume(folder, experiment, scenarios, report)
         _run_trials(executor, window, trial, name, experiment, scenarios, todo, folder, records, report)
@@ -422,18 +429,6 @@ def run_experiment(
 
 
 RESULT_FILES = ("experiment.json", "summary.csv", "timing.csv", "paired.csv")
-
-
-def _remove_leftovers(out: Path, experiment: Experiment) -> None:
-    """Remove the temporary files that killed writes of OUT's own files left (a SIGKILL while
-    the summary or the figure was written left ``.fig4.png.m4kupqju.tmp.png`` for good); a
-    user's dot file is left alone. Called under the sweep's lock."""
-    for p in out.iterdir():
-        if p.is_file() and any(is_temporary_of(p, name) for name in (*RESULT_FILES, experiment.figure)):
-            try:
-                p.unlink(missing_ok=True)
-            except OSError:  # a read-only OUT (an archived sweep): the leftover harms nothing
-                pass
 
 
 def _check_arguments(trials: int, steps: int, seed: int, workers: int | None, scheduler: str | None) -> None:

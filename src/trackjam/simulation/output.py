@@ -32,7 +32,15 @@ except ImportError:  # not on Windows: two runs into one folder there are not to
 
 from trackjam.arguments import text_path
 from trackjam.errors import ConfigError, OutputError
-from trackjam.files import TEMP_MARK, check_writable, existing_folder, is_temporary_of, kind_of, taken_by
+from trackjam.files import (
+    TEMP_MARK,
+    check_writable,
+    existing_folder,
+    is_temporary_of,
+    kind_of,
+    remove_leftover,
+    taken_by,
+)
 from trackjam.simulation.build import figure_settings, scenario_text
 
 if TYPE_CHECKING:
@@ -94,12 +102,8 @@ def _leftover(p: Path) -> bool:
 def _remove_leftovers(out: Path) -> None:
     """Remove what killed writes left in ``out`` (:func:`_leftover`)."""
     for p in out.iterdir():
-        if not _leftover(p):
-            continue
-        if p.is_dir():
-            shutil.rmtree(p, ignore_errors=True)
-        else:
-            p.unlink(missing_ok=True)
+        if _leftover(p):
+            remove_leftover(p)
 
 
 @contextmanager
