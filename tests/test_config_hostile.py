@@ -748,3 +748,19 @@ def test_a_warning_about_many_items_names_three_and_counts_the_rest():
     lines = scenario_warnings(load_scenario("paper-fig3", [failures]))
     assert "comms.failures[0], comms.failures[1], comms.failures[2] and 997 more: start after the last step (30); " \
            "the agent never fails" in lines
+
+
+@pytest.mark.parametrize(("high", "gate", "warned"), [(1.0, 5.0, True), (100.0, 5.0, False), (2.0, 3.4, False),
+                                                      (2.0, 3.5, True)])
+def test_a_gate_as_wide_as_the_area_is_warned_about(high, gate, warned):
+    """In a 1 m box every confirmed estimate lies within the default 5 m gate of the truth, so the
+    track-quality classes count nothing as a false track (the diagonal of a 2 m cube is 3.46 m)."""
+    from trackjam.config.warnings import scenario_warnings
+
+    s = load_scenario("paper-fig3", [f"area.high=[{high}, {high}, {high}]", f"metrics.gate={gate}",
+                                     "agents.initial=[[0.2, 0.2, 0.2], [0.5, 0.5, 0.5], [0.8, 0.8, 0.8]]",
+                                     "target.initial=[0.5, 0.5, 0.5, 0, 0, 0]"])
+    lines = [w for w in scenario_warnings(s) if w.startswith("metrics.gate")]
+    assert len(lines) == warned
+    if warned:
+        assert lines[0].startswith(f"metrics.gate: {gate:g} m is at least the area's diagonal")

@@ -34,6 +34,10 @@ def scenario_warnings(s: Scenario) -> list[str]:
     if c.belief_spread is not None and c.plan_over != "belief":
         out.append(f"control.belief_spread: {c.belief_spread:g} m has no effect under control.plan_over: {c.plan_over} "
                    "(it bounds plan_over: belief)")
+    diagonal = sum((h - l) ** 2 for l, h in zip(s.area.low, s.area.high)) ** 0.5
+    if s.metrics.gate >= diagonal:
+        out.append(f"metrics.gate: {s.metrics.gate:g} m is at least the area's diagonal ({diagonal:.3g} m); every "
+                   "confirmed estimate counts as held and none as a false track")
     at: dict[tuple, list[int]] = {}
     for j, u in enumerate(s.agents.initial):
         at.setdefault(tuple(u), []).append(j)
