@@ -53,3 +53,15 @@ def test_a_tighter_gate_never_holds_more():
     wide, tight = track_quality(r.steps, 5.0), track_quality(r.steps, 0.4)
     assert tight["held_steps"] <= wide["held_steps"]
     assert tight["held_steps"] + tight["false_track_steps"] == wide["held_steps"] + wide["false_track_steps"]
+
+
+def test_confirmed_steps_count_the_reports_not_the_existence_alone():
+    """Under the report rule of `pursuit` (P(exists and visible) > 0.5, a spread within 8 m) the
+    team can believe in the target (existence > 0.5) yet report nothing: such a step is missed
+    or silent, and confirmed_steps (it had counted existence > 0.5) does not count it."""
+    s = load_scenario("pursuit", ["steps=30", "filter.particles=2000", "filter.birth_particles=500"])
+    r = simulate(s)
+    counts = {c: int(np.sum(r.steps["quality"] == c)) for c in CLASSES}
+    believed = int(np.sum(r.steps["existence"] > 0.5))
+    assert r.summary["confirmed_steps"] == counts["held"] + counts["false_track"] + counts["phantom"]
+    assert r.summary["confirmed_steps"] < believed  # this run has withheld reports: the test can tell

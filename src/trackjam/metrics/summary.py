@@ -35,8 +35,11 @@ def summarise(steps: dict, agents: dict, *, name: str, seed: int, n_agents: int,
         "transmit_w_mean": float(np.mean(agents["power_w"])),
         "solve_s_mean": float(np.mean(steps["solve_s"])),
         "step_s_mean": float(np.mean(steps["step_s"])),
-        # a confirmed report is not a tracked target: held_steps says which were on it
-        "confirmed_steps": int(np.sum(steps["existence"] > CONFIRM)),
+        # the steps the team reported a track (track quality's "confirmed": fused existence > 0.5
+        # and an estimate, which the report rule of filter.visibility and fusion.report_spread
+        # can withhold), on the target or not: held_steps says which were on it
+        "confirmed_steps": int(np.sum((np.asarray(steps["existence"], dtype=float) > CONFIRM)
+                                      & np.isfinite(np.asarray(steps["est_x"], dtype=float)))),
         "closed_in_steps": int(np.sum(steps["closed_in"])) if "closed_in" in steps else 0,  # control.close_in
         "downed_at": downed_at,
         **track_quality(steps, gate),
