@@ -213,3 +213,17 @@ def test_the_faster_agents_runs_are_reproduced_and_give_the_docs_tables(tmp_path
     lines = module.summary(runs) + module.table(runs)
     assert [line for line in lines if line not in holding] == []
     assert module.figure(runs, tmp_path / "faster.png").stat().st_size > 10_000
+
+
+def test_the_readmes_example_of_a_scenario_too_large_gives_its_figure():
+    """The figure is counted from the configuration alone (the machine's memory only decides
+    whether it is refused, and no machine has 8 TB): the README's quoted message had gone stale
+    when the count grew."""
+    from trackjam.config import load_scenario
+    from trackjam.errors import ConfigError
+
+    quoted = re.search(r"`(agents\.n_inclination: a run would hold about [\d.]+ TB of memory), more than", README)
+    assert quoted
+    with pytest.raises(ConfigError) as err:
+        load_scenario("paper-fig3", ["agents.n_inclination=360", "agents.n_azimuth=360"])
+    assert quoted.group(1) in str(err.value)
