@@ -190,6 +190,29 @@ def test_plain_progress_prints_one_line_per_trial_with_running_means(tmp_path, c
     assert "running means:" in lines[-1]
 
 
+def test_plain_progress_says_a_slow_sweep_is_still_at_work(tmp_path, capsys, monkeypatch):
+    """A trial of 100,000 steps runs for many minutes; the plain lines say every HEARTBEAT_S
+    that the sweep is at work (shortened here), and the heartbeat stops with the sweep."""
+    from trackjam.experiments import progress
+
+    monkeypatch.setattr(progress, "HEARTBEAT_S", 0.2)
+    monkeypatch.setenv("TRACKJAM_FAKE_SLEEP", "1.0")
+    run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "trials": 1, "progress": "lines"})
+    lines = capsys.readouterr().out.splitlines()
+    beats = [k for k, line in enumerate(lines) if line.startswith("constraints: still at work, ")]
+    assert beats and lines[beats[0]].startswith("constraints: still at work, 0 of 2 trials done after ")
+    assert lines[-1].startswith("[2/2] ")  # the trials' own lines, in order
+    assert not [t for t in threading.enumerate() if t.name == "trackjam-progress"]
+
+
+@pytest.mark.parametrize(("seconds", "shown"), [(0, "0 s"), (42.9, "42 s"), (300, "5 min 00 s"),
+                                                 (3725, "1 h 02 min")])
+def test_elapsed_times_read_as_people_write_them(seconds, shown):
+    from trackjam.experiments.progress import _elapsed
+
+    assert _elapsed(seconds) == shown
+
+
 @pytest.mark.parametrize(
     "kwargs, words",
     [

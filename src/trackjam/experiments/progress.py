@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
+import time
 from typing import Any, Callable, Mapping
 
 from trackjam.errors import ConfigError, printable
+
+HEARTBEAT_S = 60.0  # with no trial finished for this long, the plain lines say the sweep is still at work
 
 Shown = tuple[tuple[str, str, str], ...]  # (label, key of a trial record, format) of each running mean
 PAPER_SHOWN: Shown = (("incidents", "jamming_incidents_per_agent", "{:.2f}"), ("OSPA", "ospa_mean", "{:.2f} m"),
@@ -59,8 +63,36 @@ class _Lines(_Reporter):
         super().start(records)
         if self.resumed:
             print(f"{self.name}: {self.resumed} of {self.total} trials found in OUT, resuming", flush=True)
+        # a trial of 100,000 steps runs for many minutes: a line every HEARTBEAT_S without one done
+        self.started = self.last = time.monotonic()
+        self.lock = threading.Lock()
+        self.done = threading.Event()
+        self.beat = threading.Thread(target=self._heartbeat, name="trackjam-progress", daemon=True)
+        self.beat.start()
+
+    def _heartbeat(self) -> None:
+        while not self.done.wait(HEARTBEAT_S / 4):
+            with self.lock:
+                now = time.monotonic()
+                if now - self.last < HEARTBEAT_S:
+                    continue
+                self.last = now
+                try:
+                    print(f"{self.name}: still at work, {len(self.records)} of {self.total} trials done after "
+                          f"{_elapsed(now - self.started)}", flush=True)
+                except (OSError, ValueError):  # a closed or broken stdout: the trial lines say so, not a thread
+                    return
+
+    def stop(self) -> None:
+        self.done.set()
+        self.beat.join()
 
     def trial(self, record) -> None:
+        with self.lock:
+            self.last = time.monotonic()
+            self._line(record)
+
+    def _line(self, record) -> None:
         super().trial(record)
         c, k = int(record["config"]), int(record["trial"])
         print(
@@ -71,14 +103,29 @@ class _Lines(_Reporter):
         )
 
 
+def _elapsed(seconds: float) -> str:
+    """``1 h 02 min``, ``5 min 00 s`` or ``42 s``."""
+    m, sec = divmod(int(seconds), 60)
+    h, m = divmod(m, 60)
+    return f"{h} h {m:02d} min" if h else f"{m} min {sec:02d} s" if m else f"{sec} s"
+
+
 class _Bar(_Reporter):
     def start(self, records) -> None:
         super().start(records)
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
 
+        # the elapsed time ticks while a long first trial runs, when the bar itself cannot move
         self.bar = Progress(
             TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-            TimeRemainingColumn(), TextColumn("{task.fields[means]}"),
+            TimeElapsedColumn(), TimeRemainingColumn(), TextColumn("{task.fields[means]}"),
         )
         self.task = self.bar.add_task(self.name, total=self.total, completed=self.resumed, means=self.means())
         self.bar.start()
