@@ -268,7 +268,7 @@ def test_an_integer_of_thousands_of_digits_in_a_yaml_file_is_refused_naming_the_
         (f"steps = {LONG}\n", "steps: integer too large (5000 digits, line 1)"),
         (f"steps = 3\n[filter]\nparticles = {LONG}\n", "filter.particles: integer too large (5000 digits, line 3)"),
         (f'name = "x"\n[[targets]]\nid = {LONG}\n', "targets.id: integer too large (5000 digits, line 3)"),
-        (f"targets = [{{id = 1}}, {{id = {LONG}}}]\n", "targets: integer too large (5000 digits, line 1)"),
+        (f"targets = [{{id = 1}}, {{id = {LONG}}}]\n", "targets.id: integer too large (5000 digits, line 1)"),
         (f"[filter]\nparticles = 1_{LONG}\n", "filter.particles: integer too large (5001 digits, line 2)"),
     ],
 )

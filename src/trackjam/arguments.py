@@ -13,6 +13,8 @@ import os
 
 import numpy as np
 
+from trackjam.errors import bounded_repr
+
 
 def whole(name: str, value, low: int, high: int) -> int:
     """``value`` as an int in [low, high]: an integer (numpy's too), not a bool or a float."""
@@ -88,8 +90,7 @@ def numeric(name: str, value) -> np.ndarray:
 
 def shown(value) -> str:
     """``value`` (an array as its list) as it is written, cut to 40 characters, for a message."""
-    text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
-    return text if len(text) <= 40 else text[:37] + "..."
+    return bounded_repr(value.tolist() if isinstance(value, np.ndarray) else value, 40)
 
 
 def points(name: str, value, sizes: tuple[int, ...] = (3,), *, ndim: int | None = None,

@@ -132,6 +132,14 @@ def user_errors(fn: Callable) -> Callable:
             return fn(*args, **kwargs)
         except TrackjamError as err:
             _fail(str(err))
+        except MemoryError:
+            # past the estimate of config/limits.py (which counts the largest arrays, not all of
+            # them): one line, not a traceback of 200; the run's folder is written whole or not at all
+            from trackjam.config.limits import memory_budget
+
+            _fail(f"out of memory (this process may use about {2 * memory_budget() / 1e9:.3g} GB); lower the "
+                  "scenario's sizes: filter.particles, filter.birth_particles, steps, agents.initial, "
+                  "sensor.clutter_rate")
         except OSError as err:
             # a path the user gave that the system refuses where no check looked (a name past 255
             # bytes fails even Path.exists()), or the standard output on a full disk (`> /dev/full`);

@@ -6,6 +6,73 @@ def shortened(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+class _Enough(Exception):
+    pass
+
+
+def bounded_repr(value, limit: int = 40) -> str:
+    """``repr(value)`` cut to ``limit`` characters with "...", built only that far: a message
+    echoing a value of a few kB whose aliases expand it to gigabytes (a list of 2,000 uses of
+    a mapping of 500 texts of 1,000 characters) had built the whole repr and run out of memory.
+    Lists, tuples, dicts and texts are written piece by piece; an integer past the 4300 digits
+    Python prints is named by its size; other values by their own repr."""
+    parts: list[str] = []
+    size = 0
+
+    def emit(text: str) -> None:
+        nonlocal size
+        parts.append(text)
+        size += len(text)
+        if size > limit:
+            raise _Enough
+
+    def walk(v) -> None:  # each level writes a bracket first, so it recurses at most limit deep
+        kind = type(v)
+        if kind in (list, tuple):
+            emit("[" if kind is list else "(")
+            for k, item in enumerate(v):
+                if k:
+                    emit(", ")
+                walk(item)
+            emit("]" if kind is list else ("," if len(v) == 1 else "") + ")")
+        elif kind is dict:
+            emit("{")
+            for k, (key, item) in enumerate(v.items()):
+                if k:
+                    emit(", ")
+                walk(key)
+                emit(": ")
+                walk(item)
+            emit("}")
+        elif kind in (str, bytes):
+            emit(repr(v) if len(v) <= limit else _head_repr(v, limit + 1))
+        elif kind is int:
+            try:
+                emit(repr(v))
+            except ValueError:  # past the digits Python prints
+                emit(f"<an integer of about {int(v.bit_length() * 0.30103) + 1} digits>")
+        else:
+            emit(repr(v))
+
+    try:
+        walk(value)
+    except _Enough:
+        pass
+    return shortened("".join(parts), limit)
+
+
+def _head_repr(v, n: int) -> str:
+    """The start of ``repr(v)`` from ``repr(v[:n])``: the quotes are those repr chooses for the
+    whole text (double when it holds a single quote and no double one), not for its head."""
+    r = repr(v[:n])
+    if isinstance(v, str):
+        double = "'" in v and '"' not in v
+        if double != (r[0] == '"'):
+            body = r[1:-1]
+            r = f'"{body}"' if double else "'" + body.replace("'", "\\'") + "'"
+    return r
+
+
 def ends(text: str, keep: int = 60) -> str:
     """``text``, or its first and last ``keep`` characters around "..." when it is longer: a path
     of thousands of characters in a message, where its two ends say which it is."""

@@ -102,7 +102,9 @@ def check_name(name: str) -> None:
 
 
 def memory_budget() -> float:
-    """Half of the memory this process may use: the machine's, or its cgroup's limit if lower [bytes]."""
+    """Half of the memory this process may use: the machine's, or its cgroup's limit or its
+    address-space limit (``ulimit -v``) if lower [bytes]. Under `ulimit -v 4000000` a run of
+    10^7 particles had passed the check and failed with a MemoryError traceback."""
     total = 8e9
     try:
         total = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
@@ -113,6 +115,14 @@ def memory_budget() -> float:
         if limit.isdigit():
             total = min(total, float(limit))
     except OSError:
+        pass
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY and soft > 0:
+            total = min(total, float(soft))
+    except (ImportError, OSError, ValueError):  # no resource module (Windows)
         pass
     return total / 2
 

@@ -18,13 +18,16 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from trackjam.config.model import LongInteger, Scenario
-from trackjam.errors import ConfigError, printable, shortened
+from trackjam.errors import ConfigError, bounded_repr, printable, shortened
 
 MAX_FILE_BYTES = 1_000_000  # a scenario is a few kB; this stops /dev/zero and stray binaries
 # values of a scenario once YAML's aliases are expanded: a 1 MB file holds fewer than this, but
 # nested aliases (*a of a list of *b of ...) expand a few lines to billions, and copying or
 # validating them would never end
 MAX_VALUES = 1_000_000
+# characters of text (keys and values) once aliases are expanded: a few kB of aliases to one
+# mapping of long texts expanded to gigabytes, which a message echoing the value then printed
+MAX_TEXT = 2 * MAX_FILE_BYTES
 MAX_DEPTH = 50  # levels of nesting; the readers after the parser (copies, validation) recurse
 SET_SHOWN = 60  # characters of a --set item a message shows
 MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would be a line of 600 kB)
@@ -67,6 +70,11 @@ class _Loader(yaml.SafeLoader):
                     None, None, f"a key must be a name, got a {type(key).__name__} (line {key_node.start_mark.line + 1})",
                     key_node.start_mark,
                 )
+            if not isinstance(key, str):  # `yes: 3` was "1: ...", `~: 3` "None: ..."; a key of 5000 digits unprintable
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"a key must be a name, got {bounded_repr(key_node.value)}, which YAML reads as "
+                    f"{_kind_of_key(key)}; quote it (line {key_node.start_mark.line + 1})", key_node.start_mark,
+                )
             if key in seen:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"duplicate key {key!r} (line {key_node.start_mark.line + 1})", key_node.start_mark
@@ -85,7 +93,13 @@ class _Loader(yaml.SafeLoader):
         for key_node, value_node in node.value:
             if key_node.tag == MERGE_TAG:
                 sources = value_node.value if isinstance(value_node, yaml.SequenceNode) else [value_node]
-                for source in sources:
+                # counted before anything is checked or copied: `<<: [*m, *m, ...]` 150,000 times
+                # over a mapping of 5,000 keys had checked the same keys for each use, for minutes
+                self._merged = getattr(self, "_merged", 0) + sum(
+                    len(source.value) for source in sources if isinstance(source, yaml.MappingNode))
+                if self._merged > MAX_VALUES:
+                    raise TooLarge(f"its merge keys (<<) copy more than {MAX_VALUES:,} keys; a scenario has a few hundred")
+                for source in {id(source): source for source in sources}.values():
                     if isinstance(source, yaml.MappingNode):
                         self._check_keys(source)
         super().flatten_mapping(node)
@@ -106,6 +120,16 @@ class _Loader(yaml.SafeLoader):
             None, None, f"a set (!!set) is not a scenario value; give a list (line {node.start_mark.line + 1})",
             node.start_mark,
         )
+
+
+def _kind_of_key(key: Any) -> str:
+    if key is None:
+        return "null"
+    if isinstance(key, bool):
+        return "a boolean"
+    if isinstance(key, (int, float)):
+        return "a number"
+    return f"a {type(key).__name__}"
 
 
 _OCTAL = re.compile(r"[-+]?0[0-7]+")
@@ -132,10 +156,11 @@ class TooLarge(yaml.YAMLError):
 
 
 def _check_size(data: Any) -> None:
-    """Count the values of ``data`` as its readers see them (an alias counts once per use),
-    stopping at ``MAX_VALUES``: a shared list is walked as often as it is used, so the count
-    costs at most ``MAX_VALUES`` steps however far the aliases would expand."""
-    stack, seen = [(data, 0)], 0
+    """Count the values of ``data`` and the characters of its texts (keys too) as its readers
+    see them (an alias counts once per use), stopping at ``MAX_VALUES`` values or ``MAX_TEXT``
+    characters: a shared list is walked as often as it is used, so the count costs at most
+    ``MAX_VALUES`` steps however far the aliases would expand."""
+    stack, seen, text = [(data, 0)], 0, 0
     while stack:
         node, depth = stack.pop()
         seen += 1
@@ -146,9 +171,15 @@ def _check_size(data: Any) -> None:
         if depth > MAX_DEPTH:
             raise _too_deep()
         if isinstance(node, dict):
+            text += sum(len(k) for k in node if isinstance(k, str))
             stack.extend((v, depth + 1) for v in node.values())
         elif isinstance(node, list):
             stack.extend((v, depth + 1) for v in node)
+        elif isinstance(node, str):
+            text += len(node)
+        if text > MAX_TEXT:
+            raise TooLarge(f"it holds more than {MAX_TEXT:,} characters of text, its aliases (*name) expanded; "
+                           "a scenario has a few thousand")
 
 
 def _too_deep() -> TooLarge:
@@ -356,7 +387,37 @@ class LongIntegerError(ValueError):
     """A TOML text with an integer of more digits than Python converts; the message says where."""
 
 
+_TOML_TOKEN = re.compile(r"[A-Za-z0-9_-]+|\"[^\"\n]*\"|'[^'\n]*'|[ \t]+|.", re.DOTALL)
+
+
+def _toml_key_depth(text: str) -> int:
+    """The most parts of a dotted key in a TOML text (``a.b.c`` has 3), or of anything written like
+    one, counted in one pass: tomllib takes time and memory that grow as the square of a key's
+    parts (40,000 of them, an 80 kB file, took 28 s and 4 GB), before the depth of the data it
+    returns could be checked."""
+    if text.count(".") < MAX_DEPTH:
+        return min(text.count(".") + 1, MAX_DEPTH)
+    most = parts = 0
+    dot = True  # the last token was a dot (or nothing yet): a name continues the key
+    for m in _TOML_TOKEN.finditer(text):
+        token = m[0]
+        if token[0] in " \t":
+            continue
+        if token == ".":
+            dot = True
+            continue
+        if dot and (token[0].isalnum() or token[0] in "_-\"'"):
+            parts += 1
+            most = max(most, parts)
+        else:
+            parts = 1 if (token[0].isalnum() or token[0] in "_-\"'") else 0
+        dot = False
+    return most
+
+
 def _toml(text: str) -> Any:
+    if _toml_key_depth(text) > MAX_DEPTH:
+        raise _too_deep()
     try:
         return _parsed(tomllib.loads, text)
     except tomllib.TOMLDecodeError:  # a ValueError too
@@ -377,8 +438,10 @@ def _long_integer(text: str) -> str | None:
     """Where the first integer of more than 4300 digits stands in a TOML text, as "KEY: integer
     too large (N digits, line L)", KEY the dotted key of the last key line before it (with its
     table), or None when there is none. A hint, not a parse: tomllib does not say where."""
-    m = _TOML_LONG.search(text)
-    if m is None:
+    for m in _TOML_LONG.finditer(text):  # the first outside a comment (`# seed 111...` is no value)
+        if "#" not in text[text.rfind("\n", 0, m.start()) + 1: m.start()]:
+            break
+    else:
         return None
     table, key = "", ""
     for row in text[: m.start()].split("\n"):
@@ -386,6 +449,10 @@ def _long_integer(text: str) -> str | None:
             table, key = t[1], ""
         elif k := _TOML_KEY.match(row):
             key = k[1]
+    # in an inline table, `antenna = {height = 999...}`, the key just before the number
+    inner = re.search(r"[{,]\s*([\w\-]+)\s*=\s*$", text[text.rfind("\n", 0, m.start()) + 1: m.start()])
+    if inner:
+        key = f"{key}.{inner[1]}"
     name = ".".join(p.strip().strip("\"'") for p in f"{table}.{key}".split(".") if p.strip())
     digits = sum(c.isdigit() for c in m[0])
     line = text.count("\n", 0, m.start()) + 1
@@ -418,7 +485,10 @@ def _read_file(path: Path) -> dict:
     if data is None or (toml and data == {}):
         raise ConfigError(f"{path}: is empty (write the keys to change, e.g. from `trackjam show-config`)")
     if not isinstance(data, dict):
-        raise ConfigError(f"{path}: the scenario must be a mapping of keys, got {type(data).__name__}")
+        hint = ""
+        if not toml and isinstance(data, str) and _TOML_KEY.match(text.lstrip("\ufeff")):
+            hint = f" (`key = value` is TOML: name the file {path.stem}.toml)"
+        raise ConfigError(f"{path}: the scenario must be a mapping of keys, got {type(data).__name__}{hint}")
     return data
 
 

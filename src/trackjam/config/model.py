@@ -35,6 +35,7 @@ from trackjam.config.limits import (
     check_resources,
     check_name,
 )
+from trackjam.errors import bounded_repr
 
 
 class LongInteger:
@@ -74,7 +75,7 @@ def _number(v: Any) -> Any:
     if isinstance(v, LongInteger):
         raise ValueError(v.problem())
     if isinstance(v, (bool, str, bytes)):
-        raise ValueError(f"must be a number, got {type(v).__name__} {v!r}")
+        raise ValueError(f"must be a number, got {type(v).__name__} {bounded_repr(v)}")
     if isinstance(v, (numbers.Real, decimal.Decimal)):
         # an int of 400 digits or Decimal('NaN') is no finite float (pydantic said "a valid number"
         # and "greater than 0"); float() is what the model keeps anyway
@@ -94,7 +95,7 @@ def _integer(v: Any) -> Any:
     if isinstance(v, float) and v.is_integer() and abs(v) < 2**63:
         return int(v)
     if isinstance(v, (bool, str, bytes)) or not isinstance(v, numbers.Integral):
-        raise ValueError(f"must be an integer, got {type(v).__name__} {v!r}")
+        raise ValueError(f"must be an integer, got {type(v).__name__} {bounded_repr(v)}")
     return int(v)
 
 
@@ -222,15 +223,15 @@ def _target_id(v: Any) -> Any:
         raise ValueError(v.problem())
     if isinstance(v, str):
         if not 1 <= len(v) <= MAX_ID_CHARS or v != v.strip():
-            raise ValueError(f"a text id must have 1 to {MAX_ID_CHARS} characters and no surrounding blanks, got {v!r}")
+            raise ValueError(f"a text id must have 1 to {MAX_ID_CHARS} characters and no surrounding blanks, got {bounded_repr(v)}")
         if not v.isprintable():  # a NUL merged two targets in targets.parquet
             raise ValueError(f"a text id must not hold control or other non-printing characters (NUL, a line "
-                             f"break, a tab, U+2028), got {v!r}")
+                             f"break, a tab, U+2028), got {bounded_repr(v)}")
         return v
     if isinstance(v, float) and v.is_integer() and abs(v) < 2**63:
         return int(v)
     if isinstance(v, bool) or not isinstance(v, numbers.Integral):
-        raise ValueError(f"an id is an integer or a text, got {type(v).__name__} {v!r}")
+        raise ValueError(f"an id is an integer or a text, got {type(v).__name__} {bounded_repr(v)}")
     if not abs(v) < 2**63:
         raise ValueError(f"an integer id must lie within +-(2^63 - 1), got {_shown(v)}")
     return int(v)
@@ -277,9 +278,9 @@ def _parse_level(v: Any) -> float | None:
         try:
             v = float(v)
         except ValueError:
-            raise ValueError(f"power level {v!r} is neither a number in dBW nor 'off'") from None
+            raise ValueError(f"power level {bounded_repr(v)} is neither a number in dBW nor 'off'") from None
     if not isinstance(v, (int, float)) or (isinstance(v, float) and not math.isfinite(v)):
-        raise ValueError(f"power level {v!r} must be a finite number in dBW or 'off'")
+        raise ValueError(f"power level {bounded_repr(v)} must be a finite number in dBW or 'off'")
     if not DBW_MIN <= v <= DBW_MAX:  # an int compares exactly: math.isfinite(10**400) overflowed
         shown = _shown(v) if isinstance(v, int) else f"{v:g}"
         raise ValueError(f"power level {shown} dBW lies outside [{DBW_MIN:g}, {DBW_MAX:g}] dBW")
