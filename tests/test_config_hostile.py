@@ -764,3 +764,12 @@ def test_a_gate_as_wide_as_the_area_is_warned_about(high, gate, warned):
     assert len(lines) == warned
     if warned:
         assert lines[0].startswith(f"metrics.gate: {gate:g} m is at least the area's diagonal")
+
+
+def test_team_proposals_without_shared_scans_is_warned_about():
+    from trackjam.config.warnings import scenario_warnings
+
+    lines = scenario_warnings(load_scenario("paper-fig3", ["filter.team_proposals=true"]))
+    assert any(w.startswith("filter.team_proposals: true has no effect under fusion.share: posteriors") for w in lines)
+    assert not [w for w in scenario_warnings(load_scenario("pursuit", ["filter.team_proposals=true"]))
+                if w.startswith("filter.team_proposals")]

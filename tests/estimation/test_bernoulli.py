@@ -211,7 +211,7 @@ def test_the_two_scan_gaussians_kept_from_the_last_step_change_nothing():
             if not keep:
                 f._young_gaussians = (None, None)
             elif f._young is not None and f._young_gaussians[0] is not None:
-                if f._young_gaussians[0] is f._young.scan:
+                if f._young_gaussians[0] is f._young.scans:
                     reused += 1
                 else:
                     stale += 1

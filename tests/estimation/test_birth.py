@@ -119,3 +119,83 @@ def test_birth_options_split_the_birth_particles_by_the_mixing_share(birth, mix)
         assert f._young is None  # measurement-driven births are resampled with the survivors
     else:
         assert f._young is not None and len(f._young.X) == 200 - f.n_mb
+
+
+def _shared_scans_existence(two_scan: bool, teammate_at_first: bool, seeds: range, team: bool = True) -> float:
+    """Mean existence after two steps of agent A's filter, which also weighs teammate B's scans
+    (``fusion.share: scans``): at step 1 A detects near p1 and B, 4.4 m from p1 with its cone on
+    it, misses; at step 2 A detects again. The birth probability is raised to 0.5 so that the
+    young component (born at step 1) weighs in the existence."""
+    s = load_scenario("paper-fig3", ["filter.birth_prob=0.5", f"filter.team_proposals={str(team).lower()}"])
+    ant = antenna_model(s)
+    level = ant.l_max
+    p1 = np.array([57.0, 55.0, 51.0])
+    p2 = p1 + [1.5, -1.0, 0.5]
+    ua, ub = np.array([50.0, 50.0, 50.0]), np.array([60.0, 52.0, 50.0])
+    za1 = np.vstack([h(p1, ua) + [0.2, 0.01, -0.01], [20.0, 1.0, 1.0]])
+    zb1 = np.array([[30.0, -2.0, 0.5]])  # clutter only: B misses the target
+    za2 = np.vstack([h(p2, ua) + [-0.3, -0.01, 0.02], [35.0, -2.0, 2.5]])
+    out = []
+    for seed in seeds:
+        f = make_filter(s, np.random.default_rng(seed), two_scan=two_scan)
+        f.predict()
+        f.update(za1, ua, p1, level, others=[Scan.of(zb1, ub, p1, level, ant)] if teammate_at_first else [])
+        f.predict()
+        out.append(f.update(za2, ua, p2, level).existence)
+    return float(np.mean(out))
+
+
+def test_the_redrawn_young_component_keeps_the_teammates_scans():
+    """The two-scan proposal draws the young component again at step 2 from b times its scans'
+    factors at step 1: all of them, the teammates' too. It had taken A's own scan only, so B's
+    miss, which the filter without the redraw weighs (0.744), was lost (0.802, the same as with
+    no scan from B)."""
+    seeds = range(500, 510)
+    reference = _shared_scans_existence(False, True, seeds)  # no redraw: the uniform births as weighed
+    redrawn = _shared_scans_existence(True, True, seeds)
+    without_b = _shared_scans_existence(True, False, seeds)
+    assert abs(redrawn - reference) < 0.02
+    assert without_b - redrawn > 0.03  # B's miss counts
+    # filter.team_proposals: false, the earlier behaviour: the redraw forgets B's miss
+    assert abs(_shared_scans_existence(True, True, seeds, team=False) - without_b) < 0.01
+
+
+def test_a_teammates_detection_is_weighed_by_births_drawn_near_it():
+    """With shared scans a teammate's detection weighs every particle, so the births must be
+    proposed near it too: they had been drawn around the agent's own measurements only, and a
+    lone teammate's detection (A sees clutter, B the target) left A's existence at 0.5013 where
+    the exact update gives 0.5064 (brute force on the uniform birth, stratified near the target)."""
+    from trackjam.estimation.kernels import kernel_update_factors
+    from trackjam.radio.antenna import axis_of
+
+    s = load_scenario("paper-fig3", ["filter.birth_prob=0.5", "antenna.height=40", "antenna.opening_angle_deg=80",
+                                     "filter.team_proposals=true"])
+    ant, sigma = antenna_model(s), np.asarray(s.sensor.noise_std)
+    log_lc = math.log(s.sensor.clutter_rate * clutter_density(ant.max_range))
+    level = ant.l_max
+    ua, ub, aim_a, p1 = np.array([20.0, 20, 20]), np.array([50.0, 50, 50]), np.array([30.0, 80, 60]), np.array([57.0, 55, 51])
+    za = np.array([[25.0, 1.2, 1.0]])  # clutter: A's cone points elsewhere
+    zb = np.vstack([h(p1, ub) + [0.2, 0.01, -0.01], [20.0, 1.0, 1.0]])
+
+    def factor(X, Z, u, aim):
+        return np.exp(kernel_update_factors(np.ascontiguousarray(X), Z, u, axis_of(u, aim), level / ant.l_max * ant.p_d_max,
+                                            ant.height, ant.tan_half, ant.r0, ant.n_e, sigma, log_lc)[1])
+
+    # exact: e_pred = p_b = 0.5 of the uniform b; A = E_b[L_A L_B], stratified on a 10 m box around p1
+    rng = np.random.default_rng(7)
+    lo, hi, k = p1 - 5, p1 + 5, 1_000_000
+    share = 1000.0 / 1e6
+    near = np.column_stack([rng.uniform(lo, hi, (k, 3)), np.zeros((k, 3))])
+    far = np.column_stack([rng.uniform(0, 100, (k, 3)), np.zeros((k, 3))])
+    far = far[~np.all((far[:, :3] >= lo) & (far[:, :3] <= hi), axis=1)]
+    both = lambda X: factor(X, za, ua, aim_a) * factor(X, zb, ub, p1)  # noqa: E731
+    A = share * both(near).mean() + (1 - share) * both(far).mean()
+    exact = 0.5 * A / (0.5 + 0.5 * A)
+
+    seen = []
+    for seed in range(400, 410):
+        f = make_filter(s, np.random.default_rng(seed))
+        f.predict()
+        seen.append(f.update(za, ua, aim_a, level, others=[Scan.of(zb, ub, p1, level, ant)]).existence)
+    assert exact > 0.505  # B's detection is evidence: the prior is 0.5
+    assert abs(np.mean(seen) - exact) < 0.0025, (np.mean(seen), exact)  # the brute force alone is within about 0.001

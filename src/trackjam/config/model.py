@@ -453,6 +453,13 @@ class Filter(_Model):
         "resampling's reserved slots (a new or re-found track), each extra copy of a particle has N(0, this^2) added to "
         f"each velocity component [m/s], in [0, {MAX_SPEED:g}]; 0: plain copies (the paper's resampling)",
     )
+    team_proposals: StrictBool = Field(
+        False,
+        description="with fusion.share: scans (ours): the births' importance proposals are drawn around every "
+        "measurement of the step's scans, the teammates' too, and the part born at the step before is redrawn from b "
+        "times all of its scans' factors; false: the agent's own scan only, which under-weighs a teammate's lone "
+        "detection and drops the teammates' factors from the redrawn part (every committed measurement used false)",
+    )
     response: ExpectedResponse | None = Field(
         None,
         description="the jamming fail-safe the filters expect (ours), the fields of target.response: once the team's "

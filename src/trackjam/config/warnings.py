@@ -34,6 +34,9 @@ def scenario_warnings(s: Scenario) -> list[str]:
     if c.belief_spread is not None and c.plan_over != "belief":
         out.append(f"control.belief_spread: {c.belief_spread:g} m has no effect under control.plan_over: {c.plan_over} "
                    "(it bounds plan_over: belief)")
+    if s.filter.team_proposals and s.fusion.share != "scans":
+        out.append("filter.team_proposals: true has no effect under fusion.share: posteriors (it draws the births "
+                   "near the teammates' scans, which only fusion.share: scans gives an agent)")
     diagonal = sum((h - l) ** 2 for l, h in zip(s.area.low, s.area.high)) ** 0.5
     if s.metrics.gate >= diagonal:
         out.append(f"metrics.gate: {s.metrics.gate:g} m is at least the area's diagonal ({diagonal:.3g} m); every "

@@ -53,12 +53,15 @@ from scipy.special import expit
 from trackjam.arguments import corners, real, vector, whole
 from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
 from trackjam.estimation.birth import (
+    PROPOSAL_FLOOR,
+    PROPOSAL_INFLATE,
     YOUNG_FLOOR,
     YOUNG_INFLATE,
     Gaussians,
     UniformBirth,
     draw_measurement_birth,
     draw_uniform_birth,
+    measurement_covariances,
     redraw_young,
 )
 from trackjam.estimation.kernels import (
@@ -127,14 +130,29 @@ class Scan:
 @dataclass(frozen=True)
 class Young:
     """The component of s_{t-1} born at t-1: its particles at t-1 (posterior log-weights
-    normalised within it), its share ``mass`` of s_{t-1} and the scan that updated it."""
+    normalised within it), its share ``mass`` of s_{t-1} and the scans that updated it: the
+    agent's own first, then the teammates' (``fusion.share: scans``)."""
 
     X: np.ndarray
     log_w: np.ndarray
     mass: float
-    scan: Scan
+    scans: tuple[Scan, ...]
     supported: np.ndarray | None = None  # per particle: L_{t-1} > 1 (kept for filter.reserve_memory)
     nu: np.ndarray | None = None  # per particle: P(visible) after the update at t-1 (filter.visibility.per_particle)
+
+
+def scan_gaussians(scans: Sequence[Scan], noise_std, inflate: float = PROPOSAL_INFLATE,
+                   floor: float = PROPOSAL_FLOOR) -> Gaussians | None:
+    """The proposal Gaussians (:meth:`Gaussians.of_scan`) of every measurement of ``scans`` taken
+    this step, in order; None when they hold none. A late scan (``lag`` > 0) saw where the target
+    was, not where it is: it weighs the particles but proposes none."""
+    now = [s for s in scans if s.lag == 0 and len(s.Z)]
+    if not now:
+        return None
+    if len(now) == 1:
+        return Gaussians.of_scan(now[0].Z, now[0].u, noise_std, inflate, floor)
+    parts = [measurement_covariances(s.Z, s.u, noise_std, inflate, floor) for s in now]
+    return Gaussians.of(np.concatenate([m for m, _ in parts]), np.concatenate([c for _, c in parts]))
 
 
 @dataclass(frozen=True)
@@ -321,6 +339,7 @@ class FilterParams:
     reserve_memory: int = 0  # filter.reserve_memory: scans before the current one whose support keeps a reserved slot
     velocity_jitter: float = 0.0  # filter.velocity_jitter [m/s]: the reserve's extra copies get N(0, this^2) per velocity axis; 0: plain copies
     visibility_per_particle: bool = False  # filter.visibility.per_particle: each particle carries its own P(visible)
+    team_proposals: bool = False  # filter.team_proposals: the births' proposals and the young redraw take the teammates' scans too
 
     def __post_init__(self) -> None:
         # the configuration's bounds (trackjam.config); built by hand, a noise_std of one entry
@@ -354,6 +373,10 @@ class FilterParams:
             real("mode mass", self.mode[1], 0.0, 1.0, above=True)
         whole("reserve_memory", self.reserve_memory, 0, 10**6)
         real("velocity_jitter", self.velocity_jitter, 0.0)
+        for name in ("visibility_per_particle", "team_proposals"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):  # "no" would have been true
+                raise TypeError(f"{name}: expected True or False, got {type(getattr(self, name)).__name__} "
+                                f"{getattr(self, name)!r:.40}")
 
 
 class BernoulliFilter:
@@ -413,6 +436,7 @@ class BernoulliFilter:
         # filter.visibility.per_particle (ours): P(visible) per row of _X, after the last update,
         # and (set by predict) predicted to the current step
         self.per_particle = bool(f.visibility_per_particle) and self.visibility is not None
+        self.team_proposals = bool(f.team_proposals)
         self._nu = np.ones(self.n) if self.per_particle else None
         self._nu_pred: np.ndarray | None = None
         self.log_evidence = 0.0  # log sum_i w_i L_i of the last update: its evidence were the target visible
@@ -421,13 +445,13 @@ class BernoulliFilter:
         self._age = np.full(self.n, NEVER)  # per row of _X, kept with filter.reserve_memory: scans since one supported its line
         self._log_w = np.full(self.n, -math.log(self.n))  # normalised log-weights of s_t outside the young part
         self._young: Young | None = None
-        # the two-scan proposal's Gaussians of a scan, kept one step: (the Scan, its Gaussians)
-        self._young_gaussians: tuple[Scan | None, Gaussians | None] = (None, None)
+        # the two-scan proposal's Gaussians of a step's scans, kept one step: (the scans, their Gaussians)
+        self._young_gaussians: tuple[tuple[Scan, ...] | None, Gaussians | None] = (None, None)
         self._e_pred: float | None = None  # set by predict(), consumed by update()
         self._w_surv = 1.0
         self._w_birth = 0.0
         self._m_birth: tuple[np.ndarray, np.ndarray] | None = None  # measurement-driven births drawn at predict
-        self._prev_G: Gaussians | None = None  # the last scan's Gaussians, for measurement-driven birth
+        self._prev_G: Gaussians | None = None  # the last scans' Gaussians, for measurement-driven birth
         self.weighed = 0  # particles weighed by the last update: survivors, young component and births
         mean, cov = weighted_moments(self._X, np.exp(self._log_w))
         self._last = Estimate(self.e, mean, cov)
@@ -492,24 +516,29 @@ class BernoulliFilter:
         self._last = Estimate(e_pred, mean, cov)
         return self._last
 
-    def _young_at_t(self, scan: Scan) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def _young_at_t(self, scans: tuple[Scan, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """The young component at t: its particles moved by predict(), or drawn again by the
-        two-scan proposal when both its scan and the current one hold measurements; with
-        ``filter.reserve_memory``, also which of them their scan at t-1 supported; with
+        two-scan proposal when both its scans and the current ones hold measurements; with
+        ``filter.reserve_memory``, also which of them their scans at t-1 supported; with
         ``filter.visibility.per_particle``, their P(visible) predicted to t (drawn again, the
-        component's mean for each)."""
+        component's mean for each). ``scans``: this step's, the agent's own first."""
         young = self._young
-        if self.two_scan and len(young.scan.Z) and len(scan.Z):
-            cached_scan, G_prev = self._young_gaussians
-            if cached_scan is not young.scan:
-                G_prev = Gaussians.of_scan(young.scan.Z, young.scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
-            G_next = Gaussians.of_scan(scan.Z, scan.u, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
-            self._young_gaussians = (scan, G_next)  # the next step's G_prev when this scan's births become young
+        if self.two_scan:
+            cached, G_prev = self._young_gaussians
+            if cached is not young.scans:
+                G_prev = scan_gaussians(young.scans, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
+            G_next = scan_gaussians(scans, self.noise_std, YOUNG_INFLATE, YOUNG_FLOOR)
+            self._young_gaussians = (scans, G_next)  # the next step's G_prev when these scans' births become young
+        if self.two_scan and G_prev is not None and G_next is not None:
             log_L_prev: list[np.ndarray] = []  # L_{t-1} of the redrawn particles, as the proposal weighed them
 
             def weigh(X: np.ndarray) -> np.ndarray:
-                log_L_prev.append(young.scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c))
-                return log_L_prev[-1]
+                # the component's density at t-1 is b times every scan's factor that weighed it
+                log_L = young.scans[0].log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+                for other in young.scans[1:]:
+                    log_L = log_L + other.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+                log_L_prev.append(log_L)
+                return log_L
 
             X0, log_w = redraw_young(self.rng, self.b, G_prev, G_next, self.n_young, self.proposal_fraction,
                                      self.accel_var, weigh)
@@ -531,7 +560,11 @@ class BernoulliFilter:
         e_pred = self._e_pred
         scan = Scan.of(Z, u, aim, level_w, self.ant)
         Z, u = scan.Z, scan.u
-        G_now = Gaussians.of_scan(Z, u, self.noise_std) if (self.importance and len(Z)) else None
+        # filter.team_proposals: the births are proposed around every measurement of the step's
+        # scans, the teammates' too (fusion.share: scans): a teammate's detection weighs them all,
+        # so it must find some; else around the agent's own scan's only
+        scans = (scan, *others) if self.team_proposals else (scan,)
+        G_now = scan_gaussians(scans, self.noise_std) if self.importance else None
         M = self._young_mass
         young_seen = None
         nus = [self._nu_pred] if self.per_particle else None  # filter.visibility.per_particle: P(visible) per block
@@ -539,7 +572,7 @@ class BernoulliFilter:
             log_s, log_b = np.log(self._w_surv), np.log(self._w_birth)
             blocks = [(self._X, log_s + np.log1p(-M) + self._log_w)]
             if self._young is not None:
-                XY, log_wY, young_seen, nu_Y = self._young_at_t(scan)
+                XY, log_wY, young_seen, nu_Y = self._young_at_t(scans)
                 blocks.append((XY, log_s + np.log(M) + log_wY))
                 if nus is not None:
                     nus.append(nu_Y)
@@ -599,14 +632,14 @@ class BernoulliFilter:
         if k < len(X):
             log_mass = float(kernel_logsumexp(log_post[k:]))
             if log_mass > -np.inf:
-                self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scan,
+                self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scans,
                                     log_L[k:] > 0.0 if self.reserve_memory > 0 else None,
                                     None if nu_post is None else nu_post[k:].copy())
         self.e = e
         self._e_pred = None
         self._m_birth = None
         if self.n_mb:
-            self._prev_G = Gaussians.of_scan(Z, u, self.noise_std, inflate=1.0) if len(Z) else None
+            self._prev_G = scan_gaussians(scans, self.noise_std, inflate=1.0)
         self._last = Estimate(e, mean, cov)
         return self._last
 

@@ -104,6 +104,7 @@ def filter_params(s: Scenario) -> FilterParams:
         mode=None if f.mode is None else (float(f.mode.radius), float(f.mode.mass)),
         response=fail_safe(s), reserve_memory=int(f.reserve_memory), velocity_jitter=float(f.velocity_jitter),
         visibility_per_particle=f.visibility is not None and bool(f.visibility.per_particle),
+        team_proposals=bool(f.team_proposals),
     )
 
 
@@ -286,6 +287,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
         ("filter.reserve_memory", s.filter.reserve_memory, 0),
         ("filter.velocity_jitter", s.filter.velocity_jitter, 0.0),
         ("filter.visibility.per_particle", s.filter.visibility is not None and s.filter.visibility.per_particle, False),
+        ("filter.team_proposals", s.filter.team_proposals, False),
         ("control.plan_over", s.control.plan_over, "point"),
         ("control.belief_at_least", s.control.belief_at_least, None),
         ("control.close_in", s.control.close_in, None),
