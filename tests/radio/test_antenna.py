@@ -110,3 +110,19 @@ def test_compiled_kernel_matches_numpy(p, u, a):
     ax = d / n if n > 1e-12 else np.array([0, 0, 1.0])
     got = kernel_cone_gain(*p, *u, *ax, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e)
     assert got == pytest.approx(float(ref), abs=1e-12)
+
+
+def test_the_cones_farthest_point_and_so_the_clutters_range_is_the_rim_by_hand():
+    """h_a / cos(theta_a / 2) from the configuration's own numbers (40 m, 80 deg: 52.2 m), not from
+    the model's half angle: the clutter density and every update take max_range from here."""
+    import math
+
+    s = load_scenario("paper-fig3")
+    expected = s.antenna.height / math.cos(math.radians(s.antenna.opening_angle_deg) / 2)
+    assert ANT.max_range == pytest.approx(expected, rel=1e-12) and expected == pytest.approx(52.2163, abs=1e-4)
+    # a point on the rim is in the cone and at that distance; one a little further along the rim's line is not
+    from trackjam.radio.antenna import inside_cone
+
+    rim = np.array([math.sin(ANT.half_angle), 0.0, math.cos(ANT.half_angle)]) * ANT.max_range * (1 - 1e-9)
+    assert inside_cone(rim, np.zeros(3), np.array([0.0, 0.0, 1.0]), ANT.height, ANT.half_angle)
+    assert not inside_cone(rim * 1.001, np.zeros(3), np.array([0.0, 0.0, 1.0]), ANT.height, ANT.half_angle)

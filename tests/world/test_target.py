@@ -100,3 +100,18 @@ def test_jamming_response_lands_the_target_after_k_steps():
     for t in range(6, 20):
         tgt.step(t)
     assert tgt.position[2] == pytest.approx(0.0)
+
+
+def test_gamma_of_eq_1_is_half_dt_squared_then_dt_by_hand():
+    """Gamma pinned by hand, not by the library's own matrices: a Gamma of dt^2 would pass the
+    covariance test above, which takes cv_matrices as its reference."""
+    for dt in (1.0, 0.5, 2.0):
+        Phi, Gamma = cv_matrices(dt)
+        expected = np.zeros((6, 3))
+        for k in range(3):
+            expected[k, k] = dt * dt / 2
+            expected[3 + k, k] = dt
+        np.testing.assert_array_equal(Gamma, expected)
+        # a constant acceleration a for one step moves x by a dt^2 / 2 and v by a dt
+        x = Phi @ np.array([1.0, 2, 3, 0.5, 0, -1]) + Gamma @ np.array([2.0, 0, 0])
+        assert x[0] == pytest.approx(1 + 0.5 * dt + dt * dt) and x[3] == pytest.approx(0.5 + 2 * dt)
