@@ -6,6 +6,7 @@ traceback, nothing written."""
 import os
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -557,6 +558,48 @@ def test_sigterm_ends_a_run_in_one_line_leaving_no_temporary_file(tmp_path):
     assert p.returncode == 143, err
     assert err.splitlines()[-1] == "trackjam: terminated" and "Traceback" not in err
     assert not out.exists()  # stopped while stepping: nothing written
+
+
+def test_sighup_ends_a_run_as_sigterm_does(tmp_path):
+    """A closed terminal or a dropped SSH session: the run had died at once, status 129, its
+    staging folder left behind; it now ends as SIGTERM ends it, in one line, nothing left."""
+    import signal
+
+    out = tmp_path / "r"
+    p = subprocess.Popen([sys.executable, "-m", "trackjam", "run", "paper-fig3", "--set", "control.solver=exact",
+                          "--no-figures", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in p.stdout:
+        if "step" in line:
+            break
+    p.send_signal(signal.SIGHUP)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 143, err
+    assert err.splitlines()[-1] == "trackjam: terminated" and "Traceback" not in err
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_an_error_a_ctrl_c_caused_is_said_as_a_ctrl_c(tmp_path):
+    """A Ctrl-C while matplotlib's compiled module loads surfaces as "ImportError: initialization
+    failed" chained from the KeyboardInterrupt: it was a traceback, then a fatal error at exit
+    (status 134). It is the one line and status 130; the process ends at once."""
+    code = textwrap.dedent(f"""
+        import sys
+        import trackjam.simulation.loop as loop
+        def interrupted_import(*args, **kwargs):
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as err:
+                raise ImportError("initialization failed") from err
+        loop.simulate = interrupted_import
+        from trackjam.console import main
+        sys.argv = ["trackjam", "run", "paper-fig3", "--set", "steps=2", "--set", "target.occlusions=[]",
+                    "--out", {str(tmp_path / "r")!r}]
+        main()
+    """)
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 130, p.stderr
+    assert p.stderr.strip().splitlines() == ["trackjam: interrupted"]
+    assert not (tmp_path / "r").exists()
 
 
 def test_a_sigterm_while_writing_removes_the_file_being_written(tmp_path):

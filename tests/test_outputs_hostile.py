@@ -181,6 +181,23 @@ def test_signals_held_lets_the_blocks_error_through_and_puts_the_handlers_back(s
     assert signal.getsignal(signal.SIGINT) is sigint and signal.getsignal(signal.SIGTERM) is sigterm_raises
 
 
+def test_signals_held_holds_a_sighup_too(sigterm_raises):
+    from trackjam.simulation.output import _signals_held
+
+    before = signal.signal(signal.SIGHUP, sigterm_raises)
+    try:
+        reached = False
+        with pytest.raises(_Terminated):
+            with _signals_held():
+                os.kill(os.getpid(), signal.SIGHUP)
+                for _ in range(1000):  # a SIGHUP not held back would end this loop
+                    pass
+                reached = True
+        assert reached and signal.getsignal(signal.SIGHUP) is sigterm_raises
+    finally:
+        signal.signal(signal.SIGHUP, before)
+
+
 def test_signals_held_delivers_a_held_ctrl_c_on_leaving():
     from trackjam.simulation.output import _signals_held
 

@@ -157,12 +157,36 @@ def user_errors(fn: Callable) -> Callable:
                 raise SystemExit(ended.code) from None
             if not interrupted(err):  # a SystemError that no Ctrl-C caused
                 raise
-            global _said_interrupted
-            _said_interrupted = True
-            typer.echo("trackjam: interrupted", err=True)
-            raise typer.Exit(130)
+            _say_interrupted(err)
+        except Exception as err:
+            # an error a Ctrl-C caused: one that landed while matplotlib's compiled module was
+            # loading surfaced as "ImportError: initialization failed", a traceback (typer's Exit
+            # of a Ctrl-C already said is no such error)
+            if isinstance(err, (typer.Exit, typer.Abort)) or not interrupted(err):
+                raise
+            _say_interrupted(err)
 
     return wrapper
+
+
+def _say_interrupted(err: BaseException) -> None:
+    """The one line of a Ctrl-C and exit status 130. When the Ctrl-C landed in the import of a
+    compiled module, that module is half made, and the interpreter's own exit aborted on it
+    ("Fatal Python error: PyThreadState_Get", status 134): the process then ends at once, its
+    output flushed, once every `with` block on the way here has done its cleaning."""
+    global _said_interrupted
+    _said_interrupted = True
+    typer.echo("trackjam: interrupted", err=True)
+    if _cause(err, ImportError) is not None:
+        import os
+
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(130)
+    raise typer.Exit(130)
 
 
 def _cause(err: BaseException, kind: type) -> BaseException | None:

@@ -10,6 +10,8 @@ Python code may call too.
   experiment's temporary file, :func:`trackjam.files.atomic_write`), an experiment's pool is
   terminated, and the command ends with one line, `trackjam: terminated`. It ended a run at once,
   status -15, with no word and sometimes a temporary file.
+- SIGHUP (a closed terminal, a dropped SSH session) is taken as SIGTERM: it had ended a run at once,
+  status 129, with its staging folder left behind.
 - A reader that stops early (`trackjam run | head -1`, `2>&1 | head`) does not end the command:
   the standard output and error write through :class:`_PipeSafe`, which points its file
   descriptor at the null device at the first broken pipe, and the command goes on to write its
@@ -105,6 +107,8 @@ def main() -> None:
     sys.stdout = _pipe_safe(_reopened(1, sys.stdout))
     sys.stderr = _pipe_safe(_reopened(2, sys.stderr))
     signal.signal(signal.SIGTERM, _terminated)
+    if hasattr(signal, "SIGHUP"):  # a closed terminal or a dropped SSH session: ended as by SIGTERM, cleaned up
+        signal.signal(signal.SIGHUP, _terminated)
     try:
         import trackjam.cli as cli
     except KeyboardInterrupt:

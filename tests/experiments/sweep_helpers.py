@@ -91,6 +91,14 @@ def failing_trial(scenario: Scenario) -> dict:
     return fake_trial(scenario)
 
 
+def killed_trial(scenario: Scenario) -> dict:
+    """``fake_trial``, except that trial 1 of configuration 2 kills its own worker process, as the
+    kernel's out-of-memory killer would, while ``TRACKJAM_KILL_TRIAL`` is set."""
+    if scenario.name.endswith("-c2-t1") and os.environ.get("TRACKJAM_KILL_TRIAL"):
+        os.kill(os.getpid(), signal.SIGKILL)
+    return fake_trial(scenario)
+
+
 def holding_trial(scenario: Scenario) -> dict:
     """A trial of an experiment with metrics of its own: shares of steps held, on a false
     track and missed (they sum to 1), plus the wall times every trial reports."""

@@ -347,7 +347,7 @@ def test_an_experiment_json_that_is_not_a_small_file_is_one_line_without_reading
                           timeout=60, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30)))
     what = "larger than 10 MB" if kind == "huge" else "not a regular file (a folder, a device or a pipe)"
     assert proc.returncode == 2 and proc.stderr == (
-        f"trackjam: error: {meta}: {what}; remove it to start over, or choose another --out\n")
+        f"trackjam: error: {meta}: {what}; restore it, or remove the whole folder to start over, or choose another --out\n")
     assert sorted(p.name for p in out.iterdir()) == ["experiment.json"]
 
 
@@ -586,3 +586,25 @@ def test_a_trial_function_returning_a_huge_figure_is_refused_before_it_is_writte
     with pytest.raises(ValueError, match=r"^the trial function returned ospa_mean past \+-1e\+100 "):
         run_experiment("constraints", workers=1, out=out, **{**SWEEP, "trial": overflowing})
     assert list((out / "trials").iterdir()) == []
+
+
+def test_a_sweep_that_cannot_write_its_parameters_leaves_no_folder_it_made(tmp_path, monkeypatch):
+    """On a full disk the sweep said so in one line but left OUT behind, made and empty (a run
+    removes the folders it made); what was there before stays."""
+    import errno
+
+    from trackjam.experiments import engine
+
+    def full(path, write):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(engine, "atomic_write", full)
+    out = tmp_path / "new" / "deeper" / "sweep"
+    with pytest.raises(ConfigError, match=r"cannot write there \(No space left on device\)"):
+        engine.run_experiment("constraints", workers=1, out=out, **SWEEP)
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="cannot write there"):
+        engine.run_experiment("constraints", workers=1, out=tmp_path / "kept" / "sweep", **SWEEP)
+    assert [p.name for p in (tmp_path / "kept").iterdir()] == ["notes.txt"]

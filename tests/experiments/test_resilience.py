@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
-from sweep_helpers import ENV, SWEEP, free_port, kill, start, wait_for_files
+from sweep_helpers import ENV, SWEEP, free_port, kill, killed_trial, start, wait_for_files
 
 from trackjam.config import load_scenario
 from trackjam.errors import ConfigError
@@ -161,7 +161,7 @@ def test_an_unreadable_experiment_json_is_one_line_and_changes_nothing(fresh, tm
     run_experiment("constraints", workers=1, out=out, **SWEEP)
     (out / "experiment.json").write_bytes(content)
     before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    with pytest.raises(ConfigError, match="experiment.json: .*remove it to start over") as err:
+    with pytest.raises(ConfigError, match="experiment.json: .*remove the whole folder to start over") as err:
         run_experiment("constraints", workers=1, out=out, **SWEEP)
     assert "\n" not in str(err.value)
     with pytest.raises(ConfigError):
@@ -561,3 +561,21 @@ def test_a_lost_scheduler_is_one_line_and_the_trials_written_resume(tmp_path):
     assert written >= 1
     r = run_experiment("constraints", trials=4, steps=10, workers=1, out=out, progress="none")
     assert r.ran == 8 - written
+
+
+def test_a_worker_killed_from_outside_is_one_line_and_a_rerun_resumes(tmp_path, monkeypatch):
+    """The out-of-memory killer or a `kill -9` on a pool worker: an 86-line BrokenProcessPool
+    traceback, exit status 1; now one line naming what happened, the trials written intact."""
+    from trackjam.errors import OutputError
+
+    out = tmp_path / "sweep"
+    monkeypatch.setenv("TRACKJAM_KILL_TRIAL", "1")
+    with pytest.raises(OutputError, match=r"^a worker process of the pool ended abruptly \(killed from outside, "
+                       r"perhaps by the system for lack of memory\); the trials written are intact: run the same "
+                       r"command again to resume"):
+        run_experiment("constraints", workers=2, out=out, **{**SWEEP, "trials": 3, "trial": killed_trial})
+    written = sorted(p.name for p in (out / "trials").glob("c*.parquet"))
+    assert "c02-t0001.parquet" not in written
+    monkeypatch.delenv("TRACKJAM_KILL_TRIAL")
+    r = run_experiment("constraints", workers=1, out=out, **SWEEP | {"trials": 3, "trial": killed_trial})  # resumes
+    assert len(list((out / "trials").glob("c*.parquet"))) == 6 and r is not None

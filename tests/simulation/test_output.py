@@ -68,6 +68,23 @@ def test_out_holding_another_scenario_is_refused_and_untouched(tmp_path):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
+def test_the_same_scenarios_run_beside_other_entries_is_refused_naming_them():
+    """An earlier run of this very scenario with a subfolder beside it: the message said "holds
+    another scenario's run", although the scenario was the same; it names the other entries."""
+    import tempfile
+
+    from trackjam.simulation.build import scenario_text
+
+    s = load_scenario("paper-fig3", list(FAST))
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "run")
+        os.makedirs(os.path.join(out, "sub"))
+        with open(os.path.join(out, "scenario.yaml"), "w") as f:
+            f.write(scenario_text(s))
+        with pytest.raises(ConfigError, match=r"folder is not empty and holds other files \(sub\); choose a new"):
+            check_out_dir(out, s)
+
+
 def test_the_default_folder_of_another_run_is_refused_without_blaming_an_untyped_out(tmp_path):
     # `trackjam run paper-fig3`, then the README's `--set antenna.pointing=aim`: the same name and
     # seed, so the same default folder, which holds the first run and is kept

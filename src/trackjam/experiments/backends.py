@@ -23,6 +23,7 @@ import sys
 import threading
 import time
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
@@ -142,6 +143,13 @@ def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[
     with _sigterm_exits():
         try:
             yield pool, 2 * n
+        except BrokenProcessPool:
+            # a worker killed from outside (the kernel's out-of-memory killer, a `kill -9`): it was an
+            # 86-line traceback, exit status 1
+            pool.terminate()
+            raise OutputError("a worker process of the pool ended abruptly (killed from outside, perhaps by the system "
+                              "for lack of memory); the trials written are intact: run the same command again to "
+                              "resume, with fewer --workers if memory is short") from None
         except BaseException:
             pool.terminate()
             raise

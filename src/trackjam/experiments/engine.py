@@ -174,7 +174,8 @@ def read_parameters(meta: Path) -> dict:
     """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable:
     not a regular file (a pipe waits for a writer forever, /dev/zero never ends), too large to
     be ours, or not an experiment's parameters."""
-    fix = "remove it to start over, or choose another --out"
+    # removing experiment.json alone leaves a folder a sweep refuses ("holds no experiment.json")
+    fix = "restore it, or remove the whole folder to start over, or choose another --out"
     if not meta.is_file():
         raise ConfigError(f"{meta}: not a regular file (a folder, a device or a pipe); {fix}")
     if meta.stat().st_size > PARAMETERS_MAX_BYTES:
@@ -184,9 +185,9 @@ def read_parameters(meta: Path) -> dict:
     except (OSError, ValueError, RecursionError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer
         # past 4300 digits, [[[[... nested deeper than the parser recurses
         reason = "empty" if meta.is_file() and meta.stat().st_size == 0 else type(err).__name__
-        raise ConfigError(f"{meta}: unreadable ({reason}); remove it to start over, or choose another --out") from None
+        raise ConfigError(f"{meta}: unreadable ({reason}); {fix}") from None
     if not isinstance(params, dict) or "experiment" not in params:
-        raise ConfigError(f"{meta}: not an experiment's parameters; remove it to start over, or choose another --out")
+        raise ConfigError(f"{meta}: not an experiment's parameters; {fix}")
     return params
 
 
@@ -242,6 +243,7 @@ def _claim(out: Path, params: dict) -> None:
     """Write experiment.json (atomically) unless it is there, then create OUT/trials: in that
     order a sweep killed in between leaves an OUT that resumes (the other order left a
     ``trials/`` without experiment.json, which a rerun refuses as a folder holding something else)."""
+    made = [p for p in (out, *out.parents) if not p.exists()][::-1]  # the folders this sweep creates, outermost first
     try:
         out.mkdir(parents=True, exist_ok=True)
         meta = out / "experiment.json"
@@ -249,6 +251,12 @@ def _claim(out: Path, params: dict) -> None:
             atomic_write(meta, lambda tmp: tmp.write_text(json.dumps(params, indent=2) + "\n"))
         (out / "trials").mkdir(exist_ok=True)
     except OSError as err:
+        # a full disk left OUT made and empty (a run removes the folders it made): so does a sweep
+        for p in reversed(made):
+            try:
+                p.rmdir()  # only if empty: what another process put there stays
+            except OSError:
+                break
         raise ConfigError(f"--out {out}: cannot write there ({err.strerror or err})") from None
 
 

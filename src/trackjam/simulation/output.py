@@ -31,7 +31,7 @@ except ImportError:  # not on Windows: two runs into one folder there are not to
     fcntl = None
 
 from trackjam.arguments import text_path
-from trackjam.errors import ConfigError, OutputError
+from trackjam.errors import ConfigError, OutputError, shortened
 from trackjam.files import (
     TEMP_MARK,
     check_writable,
@@ -80,7 +80,9 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
             same = previous.is_file() and previous.stat().st_size == len(text) and previous.read_bytes() == text
             strangers = sorted(set(entries) - set(RUN_FILES))
             if not same or strangers:
-                what = "another scenario's run" if previous.is_file() else "other files"
+                # the same scenario's run beside other entries is named by those entries
+                what = ("another scenario's run" if previous.is_file() and not same
+                        else f"other files ({shortened(', '.join(strangers), 60)})" if strangers else "other files")
                 fix = "pass --out FOLDER or change the scenario's `name`" if default else "choose a new or empty folder"
                 raise ConfigError(f"{where}: folder is not empty and holds {what}; {fix}")
             # an earlier run of this scenario, to be replaced: a name of ours that is not a file
@@ -108,9 +110,9 @@ def _remove_leftovers(out: Path) -> None:
 
 @contextmanager
 def _signals_held():
-    """Hold Ctrl-C and SIGTERM back while the staged files are renamed into place, so that a
-    folder is not left half old and half new; a signal that came meanwhile acts right after
-    (SIGTERM first when both came: one exception can end the command). If the block fails, its
+    """Hold Ctrl-C, SIGTERM and SIGHUP back while the staged files are renamed into place, so that
+    a folder is not left half old and half new; a signal that came meanwhile acts right after
+    (SIGTERM first when several came: one exception can end the command). If the block fails, its
     error is what is raised, and a held Ctrl-C is dropped: the command ends with that error.
 
     Python runs its signal handlers in the main thread; there the handlers are swapped for one
@@ -127,8 +129,9 @@ def _signals_held():
     def note(signum, frame):
         caught.append(signum)
 
+    held = [signal.SIGTERM, *([signal.SIGHUP] if hasattr(signal, "SIGHUP") else []), signal.SIGINT]
     try:
-        for s in (signal.SIGTERM, signal.SIGINT):
+        for s in held:
             if signal.getsignal(s) is not None:
                 previous[s] = signal.signal(s, note)
         yield
@@ -136,7 +139,7 @@ def _signals_held():
         _put_back(previous)
         raise
     _put_back(previous)
-    for s in (signal.SIGTERM, signal.SIGINT):
+    for s in held:
         if s in caught:
             signal.raise_signal(s)
 
