@@ -394,7 +394,8 @@ def _toml_key_depth(text: str) -> int:
     """The most parts of a dotted key in a TOML text (``a.b.c`` has 3), or of anything written like
     one, counted in one pass: tomllib takes time and memory that grow as the square of a key's
     parts (40,000 of them, an 80 kB file, took 28 s and 4 GB), before the depth of the data it
-    returns could be checked."""
+    returns could be checked. A text of fewer than MAX_DEPTH dots is not scanned: it gives its
+    dots plus one, a bound at most MAX_DEPTH."""
     if text.count(".") < MAX_DEPTH:
         return min(text.count(".") + 1, MAX_DEPTH)
     most = parts = 0
