@@ -773,3 +773,12 @@ def test_team_proposals_without_shared_scans_is_warned_about():
     assert any(w.startswith("filter.team_proposals: true has no effect under fusion.share: posteriors") for w in lines)
     assert not [w for w in scenario_warnings(load_scenario("pursuit", ["filter.team_proposals=true"]))
                 if w.startswith("filter.team_proposals")]
+
+
+def test_association_misses_with_one_target_is_warned_about():
+    from trackjam.config.warnings import scenario_warnings
+
+    lines = scenario_warnings(load_scenario("paper-fig3", ["filter.association_misses=true"]))
+    assert any(w.startswith("filter.association_misses: true has no effect with one target") for w in lines)
+    assert not [w for w in scenario_warnings(load_scenario("swarm-3", ["filter.association_misses=true"]))
+                if w.startswith("filter.association_misses")]

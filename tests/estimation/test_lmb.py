@@ -396,3 +396,39 @@ def test_a_late_scan_is_refused():
     track = Track((1, 0), 0.5, X_HAND, np.log(W_HAND))
     with pytest.raises(ValueError, match="late scan"):
         lmb_update([track], scan(np.zeros((0, 3))).late(1), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0))
+
+
+def test_with_association_misses_teammates_misses_lower_a_confident_tracks_existence():
+    """Two tracks 0.5 m apart, each detected by the agent, then three teammates' empty scans over
+    them (fusion.share: scans, the iterated corrector). Gibbs without the misses can set a
+    track's existence to exactly 1 after the first scan, and then no miss lowers it (1.0 where the
+    ranked association, the enumeration here, gives 0.51 and 0.75). With ``misses`` no track is
+    stuck and the misses count; what is left is the sampler's own error on 1 - r of about 6e-4,
+    which three misses at p_D near 0.95 magnify (0.23-0.64 for the first track over seeds 0-19)."""
+    rng = np.random.default_rng(2)
+    ax = axis_of(U, AIM)
+    across = np.cross(ax, [0.0, 0.0, 1.0])
+    across /= np.linalg.norm(across)
+    n = 400
+    truth = [U + 6 * ax + (i - 0.5) * 0.5 * across for i in range(2)]
+    tracks = [Track((1, i), 0.9, np.hstack([c + rng.normal(0, 1.0, (n, 3)), rng.normal(0, 1, (n, 3))]),
+                    np.full(n, -math.log(n))) for i, c in enumerate(truth)]
+    Z = np.array([h(c, U) + rng.normal(0, 1, 3) * SIGMA for c in truth])
+    empty = Scan.of(np.zeros((0, 3)), np.array([12.0, 16.0, 8.0]), truth[0], ANT.l_max, ANT)
+
+    def run(method, seed, misses):
+        post, _, _ = lmb_update(tracks, scan(Z), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(seed), method,
+                                misses=misses)
+        first = [t.r for t in post]
+        for _ in range(3):
+            post, _, _ = lmb_update(post, empty, ANT, SIGMA, LOG_KAPPA, np.random.default_rng(seed), method,
+                                    misses=misses)
+        return first, [t.r for t in post]
+
+    exact = run("ranked", 0, False)[1]
+    assert max(exact) < 0.99  # the teammates' misses count
+    stuck = [run("gibbs", seed, False) for seed in range(20)]
+    assert any(1.0 in first for first, _ in stuck)  # the flaw: some seeds are stuck at exactly 1
+    for seed in range(20):
+        first, last = run("gibbs", seed, True)
+        assert max(first) < 1.0 and max(last) < 0.9

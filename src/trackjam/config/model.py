@@ -453,6 +453,13 @@ class Filter(_Model):
         "resampling's reserved slots (a new or re-found track), each extra copy of a particle has N(0, this^2) added to "
         f"each velocity component [m/s], in [0, {MAX_SPEED:g}]; 0: plain copies (the paper's resampling)",
     )
+    association_misses: StrictBool = Field(
+        False,
+        description="several targets (ours): the LMB filters' Gibbs association also weighs, for each track, the best "
+        "hypothesis with that track's detection missed; false: only the hypotheses the sampler visits, so a track "
+        "whose miss it never visits gets an existence of exactly 1 that no later scan of the step lowers (every "
+        "committed several-target measurement used false)",
+    )
     team_proposals: StrictBool = Field(
         False,
         description="with fusion.share: scans (ours): the births' importance proposals are drawn around every "

@@ -34,6 +34,9 @@ def scenario_warnings(s: Scenario) -> list[str]:
     if c.belief_spread is not None and c.plan_over != "belief":
         out.append(f"control.belief_spread: {c.belief_spread:g} m has no effect under control.plan_over: {c.plan_over} "
                    "(it bounds plan_over: belief)")
+    if s.filter.association_misses and (s.targets is None or len(s.targets) < 2):
+        out.append("filter.association_misses: true has no effect with one target (its Bernoulli filter has no "
+                   "association; the LMB filters of several targets have)")
     if s.filter.team_proposals and s.fusion.share != "scans":
         out.append("filter.team_proposals: true has no effect under fusion.share: posteriors (it draws the births "
                    "near the teammates' scans, which only fusion.share: scans gives an agent)")

@@ -107,6 +107,7 @@ class LMBParams:
     association: str = "gibbs"  # "gibbs" | "ranked"
     gibbs_samples: int = 1000  # Gibbs sweeps per update
     ranked_k: int = 200  # hypotheses of the ranked assignment
+    association_misses: bool = False  # filter.association_misses: Gibbs also weighs each track's miss of the best hypothesis
     visibility: tuple[float, float] | None = None  # (hide, reappear) per step: the hidden-target mode; None: always visible
     response: FailSafe | None = None  # filter.response: the fail-safe it expects of a jammed target; None: Eq. (1) always
 
@@ -135,6 +136,8 @@ class LMBParams:
             raise ValueError(f"association: expected 'gibbs' or 'ranked', got {self.association!r:.40}")
         whole("gibbs_samples", self.gibbs_samples, 1, GIBBS_SAMPLES_MAX)
         whole("ranked_k", self.ranked_k, 1, RANKED_K_MAX)
+        if not isinstance(self.association_misses, (bool, np.bool_)):
+            raise TypeError(f"association_misses: expected True or False, got {type(self.association_misses).__name__}")
         if self.visibility is not None:
             if isinstance(self.visibility, (str, bytes)) or len(self.visibility) != 2:
                 raise ValueError(f"visibility: expected (hide, reappear), got {self.visibility!r:.40}")
@@ -252,7 +255,7 @@ def posterior_visible(nu: float, log_coef: np.ndarray, log_miss_mean: float) -> 
 
 def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, log_kappa: float,
                rng: np.random.Generator, method: str = "gibbs", samples: int = 1000, k: int = 200,
-               balls: Sequence[tuple[np.ndarray, float]] | None = None):
+               balls: Sequence[tuple[np.ndarray, float]] | None = None, misses: bool = False):
     """The update of all tracks by one scan. Returns ``(tracks, beta, r_U)``: the posterior
     tracks (not resampled, not pruned), the association marginals (T, m + 1) and r_U (m,), the
     probability that each measurement was some track's. ``balls[i]`` holds track i's particles
@@ -264,7 +267,7 @@ def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, lo
     factors = [track_factors(t, scan, ant, noise_std, log_kappa, None if balls is None else balls[i])
                for i, t in enumerate(tracks)]
     log_eta = np.array([f.log_eta for f in factors]).reshape(len(tracks), m + 1)
-    beta = association_marginals(log_eta, method, rng, samples, k)
+    beta = association_marginals(log_eta, method, rng, samples, k, misses)
     posterior = [posterior_track(t, f, b) for t, f, b in zip(tracks, factors, beta)]
     return posterior, beta, beta[:, 1:].sum(axis=0)
 
@@ -402,11 +405,13 @@ class LMBFilter:
         p = self.p
         ball = {t.label: kernel_ball(np.ascontiguousarray(t.X)) for t in self.tracks}
         posterior, _, r_U = lmb_update(self.tracks, scan, self.ant, self.noise_std, self.log_kappa, self.rng,
-                                       p.association, p.gibbs_samples, p.ranked_k, [ball[t.label] for t in self.tracks])
+                                       p.association, p.gibbs_samples, p.ranked_k, [ball[t.label] for t in self.tracks],
+                                       p.association_misses)
         for other in others:
             alive = [t for t in posterior if t.r > 0.0]
             posterior, _, _ = lmb_update(alive, other, self.ant, self.noise_std, self.log_kappa, self.rng,
-                                         p.association, p.gibbs_samples, p.ranked_k, [ball[t.label] for t in alive])
+                                         p.association, p.gibbs_samples, p.ranked_k, [ball[t.label] for t in alive],
+                                         p.association_misses)
         kept = sorted((t for t in posterior if t.r >= p.prune), key=lambda t: -t.r)[: p.max_tracks]
         self.tracks = [self._resampled(replace(t, confirmed=t.confirmed or t.r > CONFIRM)) for t in kept]
         self._births = []

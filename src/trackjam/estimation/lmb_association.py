@@ -112,13 +112,22 @@ def unique_rows(a: np.ndarray) -> np.ndarray:
     return s[keep]
 
 
-def gibbs_hypotheses(log_eta: np.ndarray, samples: int, rng: np.random.Generator) -> np.ndarray:
+def gibbs_hypotheses(log_eta: np.ndarray, samples: int, rng: np.random.Generator,
+                     misses: bool = False) -> np.ndarray:
     """Distinct joint hypotheses (H, T) visited by ``samples`` Gibbs sweeps started at the best
-    one (which is therefore always among them)."""
+    one (which is therefore always among them). With ``misses`` (``filter.association_misses``,
+    ours) also, for each track, the best hypothesis with that track's detection missed: a sampler
+    that never visits a track's miss (a confident detection makes it about e^-7 as likely) sets
+    its existence to exactly 1, which no later scan of the step can lower."""
     log_eta = _floored(log_eta)
     start = best_hypothesis(log_eta)
     drawn = kernel_gibbs(log_eta, start, rng.random((samples, len(log_eta))))
-    return unique_rows(np.vstack([start[None, :], drawn]))
+    rows = [start[None, :], drawn]
+    if misses:
+        missed = np.repeat(start[None, :], len(start), axis=0)
+        missed[np.arange(len(start)), np.arange(len(start))] = 0  # freeing a measurement keeps it a hypothesis
+        rows.append(missed)
+    return unique_rows(np.vstack(rows))
 
 
 def _solve(C: np.ndarray):
@@ -178,14 +187,15 @@ def marginals(log_eta: np.ndarray, hyps: np.ndarray) -> np.ndarray:
 
 
 def association_marginals(log_eta: np.ndarray, method: str, rng: np.random.Generator, samples: int = 1000,
-                          k: int = 200) -> np.ndarray:
-    """beta of the LMB update by ``method``: ``gibbs`` (``samples`` sweeps) or ``ranked`` (the
-    ``k`` best hypotheses)."""
+                          k: int = 200, misses: bool = False) -> np.ndarray:
+    """beta of the LMB update by ``method``: ``gibbs`` (``samples`` sweeps, with ``misses`` each
+    track's miss of the best hypothesis too, :func:`gibbs_hypotheses`) or ``ranked`` (the ``k``
+    best hypotheses)."""
     log_eta = np.asarray(log_eta, dtype=float)
     if log_eta.shape[0] == 0:
         return np.zeros(log_eta.shape)
     if method == "gibbs":
-        hyps = gibbs_hypotheses(log_eta, samples, rng)
+        hyps = gibbs_hypotheses(log_eta, samples, rng, misses)
     elif method == "ranked":
         hyps = ranked_hypotheses(log_eta, k)
     else:

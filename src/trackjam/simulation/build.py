@@ -322,7 +322,7 @@ def lmb_params(s: Scenario) -> LMBParams:
         low=np.asarray(s.area.low, dtype=float), high=np.asarray(s.area.high, dtype=float),
         noise_std=np.asarray(s.sensor.noise_std, dtype=float), clutter_rate=float(s.sensor.clutter_rate),
         visibility=None if f.visibility is None else (float(f.visibility.hide), float(f.visibility.reappear)),
-        response=fail_safe(s),
+        response=fail_safe(s), association_misses=bool(f.association_misses),
     )
 
 
