@@ -89,12 +89,13 @@ def test_a_skipped_benchmarks_bracketed_text_is_printed_literally(monkeypatch):
     # and printed `pip install "trackjam"`
     from trackjam.benchmarks import env
 
-    skipped = 'trackjam.env needs the env extra: pip install "trackjam[env]" (No module named \'pettingzoo\')'
+    skipped = ('trackjam.env needs the env extra: pip install ".[env]" from the trackjam checkout '
+               "(No module named 'pettingzoo')")
     monkeypatch.setattr(env, "bench_env", lambda episodes: {"name": f"{env.NAME} [x]", "skipped": skipped,
                                                            "rows": [{"[bold]k": "[v]"}]})
     r = CliRunner().invoke(app, ["bench", "--quick", "--only", "env"])
     assert r.exit_code == 0, r.output
-    assert 'pip install "trackjam[env]"' in r.output
+    assert 'pip install ".[env]"' in r.output
     assert f"{env.NAME} [x]" in r.output and "[bold]k" in r.output and "[v]" in r.output
 
 

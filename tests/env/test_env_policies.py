@@ -75,3 +75,27 @@ def test_an_unknown_solver_is_named():
     env = parallel_env(load_scenario("paper-fig3", FAST))
     with pytest.raises(ValueError, match="unknown solver 'optimal'"):
         solver_policy(env, "optimal")
+
+
+def test_a_solver_registered_from_a_script_drives_the_environment():
+    """The README's promise: a solver registered from one's own script, which the configuration
+    does not name, is usable through solver_policy(env, name). It was refused as "control.solver:
+    Input should be 'greedy', 'grasp' or 'exact'"."""
+    from trackjam.control.objective import to_solution
+    from trackjam.control.solve import SOLVERS, register
+
+    calls = []
+
+    @register("all-off-script")
+    def all_off(problem, rngs, options):
+        calls.append(problem.n_agents)
+        n = problem.n_agents
+        return to_solution(problem, np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
+
+    try:
+        env = parallel_env(load_scenario("paper-fig3", ["steps=3", "filter.particles=300", "filter.birth_particles=60"]))
+        (episode,) = rollout(env, solver_policy(env, "all-off-script"), seeds=[1])
+        assert episode["steps"] == 3 and calls  # the script's solver planned the steps
+        assert episode["transmit_w_mean"] == 0.0  # and its plan, every antenna off, is what ran
+    finally:
+        del SOLVERS["all-off-script"]

@@ -92,3 +92,20 @@ def test_a_panel_must_show_metrics_the_experiment_has():
 def test_a_trial_function_missing_a_metric_stops_the_sweep_with_its_name(tmp_path):
     with pytest.raises(ValueError, match="returned no jamming_incidents_per_agent"):
         run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "trial": holding_trial})
+
+
+def test_a_new_experiment_shows_its_own_metrics_in_the_plain_progress(tmp_path, monkeypatch, capsys):
+    """Its trial function returns only its own metrics: the plain lines had printed the paper's
+    incidents and OSPA from every record, a KeyError traceback once the first trial ended."""
+    monkeypatch.setitem(definitions.EXPERIMENTS, HOLDING.name, HOLDING)
+    run_experiment(HOLDING.name, workers=1, out=tmp_path, **{**SWEEP, "trial": holding_trial, "progress": "lines"})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and lines[0].startswith("[1/4] config 1 (grasp) trial 0: held ")
+    assert ", false_track " in lines[0] and "running means: held " in lines[-1]
+    assert [key for _, key, _ in HOLDING.shown] == ["held_share", "false_share", "missed_share"]
+
+
+def test_shown_figures_must_be_among_the_experiments_metrics():
+    with pytest.raises(ValueError, match=r"shown names \['ospa_mean'\], which are not among its metrics' keys"):
+        Experiment("x", "x", (Configuration(1, "a"),), "x.png", panels=(), metrics=METRICS[:1],
+                   shown=(("OSPA", "ospa_mean", "{:.2f} m"),))

@@ -1,5 +1,5 @@
 """A PettingZoo environment for learning controllers of the pursuer team (needs the ``env``
-extra: ``pip install "trackjam[env]"``)."""
+extra: ``pip install ".[env]"`` from the checkout)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ try:
     import gymnasium  # noqa: F401
     import pettingzoo  # noqa: F401
 except ImportError as err:  # pragma: no cover - depends on the installation
-    raise ImportError(f"trackjam.env needs the env extra: pip install \"trackjam[env]\" ({err})") from None
+    raise ImportError(f"trackjam.env needs the env extra: pip install \".[env]\" from the trackjam checkout ({err})") from None
 
 from trackjam.env.observation import observation_layout
 from trackjam.env.parallel import Planned, TrackjamParallelEnv

@@ -121,6 +121,14 @@ class Experiment:
         unknown = [stem for p in self.panels for stem, _ in p.series if stem not in stems]
         if unknown:
             raise ValueError(f"experiment {self.name}: panels show {unknown}, which are not among its metrics")
+        keys = {m[1] for m in self.metrics}
+        if any(key not in keys for _, key, _ in self.shown):
+            if self.shown is not PAPER_SHOWN:
+                missing = [key for _, key, _ in self.shown if key not in keys]
+                raise ValueError(f"experiment {self.name}: shown names {missing}, which are not among its metrics' keys")
+            # an experiment of its own metrics: the progress shows its first three (the paper's
+            # incidents and OSPA, which its trial function need not return, had been a KeyError)
+            object.__setattr__(self, "shown", tuple((stem, key, "{:.3g}") for stem, key, _ in self.metrics[:3]))
 
     @property
     def swept_keys(self) -> set[str]:

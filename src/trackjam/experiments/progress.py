@@ -95,12 +95,11 @@ class _Lines(_Reporter):
     def _line(self, record) -> None:
         super().trial(record)
         c, k = int(record["config"]), int(record["trial"])
-        print(
-            f"[{len(self.records)}/{self.total}] config {c} ({self.labels[c]}) trial {k}: "
-            f"incidents {float(record['jamming_incidents_per_agent']):.2f}, "
-            f"OSPA {float(record['ospa_mean']):.2f} m | {self.means()}",
-            flush=True,
-        )
+        # the trial's own values of the first two figures the experiment shows (incidents and
+        # OSPA for the paper's), then the running means of all of them
+        own = ", ".join(f"{label} {fmt.format(float(record[key]))}" for label, key, fmt in self.shown[:2])
+        print(f"[{len(self.records)}/{self.total}] config {c} ({self.labels[c]}) trial {k}: {own} | {self.means()}",
+              flush=True)
 
 
 def _elapsed(seconds: float) -> str:
