@@ -279,7 +279,8 @@ def test_a_run_that_goes_ahead_still_warns(tmp_path):
     r = _trackjam("run", "paper-fig3", "--set", "steps=2", "--set", "filter.particles=500",
                   "--set", "filter.birth_particles=100", "--out", str(tmp_path / "run"), "--no-figures")
     assert r.returncode == 0, r.stderr
-    assert "trackjam: warning: target.occlusions: [14, 17] reach past the last step (2)" in r.stderr.splitlines()
+    assert ("trackjam: warning: target.occlusions: [14, 17] start after the last step (2), so this run has no "
+            "such occlusion") in r.stderr.splitlines()
 
 
 @pytest.mark.parametrize("name, figures", [("run.png", []), ("summary.json", ["--no-figures"]),

@@ -180,3 +180,12 @@ def test_an_odd_value_in_a_target_list_is_refused_in_one_line_or_accepted(path, 
         return
     assert len(targets_params(s)) == len(target_ids(s)) == len(s.target_list)
     assert len({str(i) for i in target_ids(s)}) == len(s.target_list)
+
+
+def test_an_occlusion_after_the_last_step_is_said_to_be_none_of_this_run():
+    from trackjam.config.warnings import scenario_warnings
+
+    lines = scenario_warnings(load_scenario("paper-fig3", ["steps=5", "target.occlusions=[[3, 8], [14, 17], [20, 21]]"]))
+    assert "target.occlusions: [3, 8] reach past the last step (5)" in lines
+    assert "target.occlusions: [14, 17], [20, 21] start after the last step (5), so this run has none of them" in lines
+    assert not [w for w in scenario_warnings(load_scenario("paper-fig3")) if "occlusions" in w]

@@ -21,9 +21,14 @@ def scenario_warnings(s: Scenario) -> list[str]:
         key = f"targets[{k}]" if listed else "target"
         if t.stochastic is None and t.appears > s.steps:
             out.append(f"{key}.appears: step {t.appears} comes after the last step ({s.steps}); the target never appears")
-        late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps]
+        late = [f"[{a}, {b}]" for a, b in t.occlusions if b > s.steps and a <= s.steps]
         if late:
             out.append(f"{key}.occlusions: {_few(late)} reach past the last step ({s.steps})")
+        # a preset shortened with `--set steps=5`: its occlusion [14, 17] simply never comes
+        after = [f"[{a}, {b}]" for a, b in t.occlusions if a > s.steps]
+        if after:
+            out.append(f"{key}.occlusions: {_few(after)} start after the last step ({s.steps}), so this run has "
+                       f"{'none of them' if len(after) > 1 else 'no such occlusion'}")
     late = [f"comms.failures[{k}]" for k, f in enumerate(s.comms.failures) if f.step > s.steps]
     if late:
         out.append(f"{_few(late)}: start after the last step ({s.steps}); the agent never fails")
