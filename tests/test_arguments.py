@@ -169,3 +169,14 @@ def test_text_path_gives_the_text_of_a_path():
     from trackjam.arguments import text_path
 
     assert text_path("p", Path("/tmp/a b")) == "/tmp/a b" and text_path("p", "r.html") == "r.html"
+
+
+@pytest.mark.parametrize(("value", "expected"), [
+    ([True, False], [True, False]), ([1, 0, 1], [True, False, True]), (np.array([0, 1], np.uint8), [False, True]),
+    ([], []), (np.zeros(0), []), ([2, 0], None), ([1.0, 0.0], None), (["a"], None),
+])
+def test_flags_takes_booleans_or_0_and_1_only(value, expected):
+    from trackjam.arguments import flags
+
+    got = flags(value)
+    assert (got is None) if expected is None else (got.dtype == bool and got.tolist() == expected)

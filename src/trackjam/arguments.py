@@ -108,6 +108,17 @@ def points(name: str, value, sizes: tuple[int, ...] = (3,), *, ndim: int | None 
     return a
 
 
+def flags(value) -> np.ndarray | None:
+    """``value`` as a bool array when it holds booleans or only the integers 0 and 1 (an empty
+    array, of any kind, holds no entry to refuse); None otherwise, for the caller's message."""
+    a = np.asarray(value)
+    if a.dtype == bool or a.size == 0:
+        return a.astype(bool, copy=False)
+    if a.dtype.kind in "iu" and np.all((a == 0) | (a == 1)):
+        return a.astype(bool)
+    return None
+
+
 def amounts(name: str, value, low: float = 0.0, high: float = math.inf) -> np.ndarray:
     """``value`` as a float array (any shape) of finite numbers in [low, high]."""
     a = numeric(name, value)

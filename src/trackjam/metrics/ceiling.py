@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackjam.arguments import corners, numeric, points, real
+from trackjam.arguments import corners, flags, numeric, points, real
 
 # At 8 m the detection probability at the top power level is p_D^max (R_0 / 8)^n_e
 # = 0.95 (6/8)^2 = 0.53 (Eq. 9 with the paper's R_0 = 6 m, n_e = 2): a coin flip per agent.
@@ -151,12 +151,9 @@ def team_ceiling(truth: np.ndarray, detectable: np.ndarray, initial: np.ndarray,
     detectable = np.asarray(detectable)
     if truth.ndim != 3 or truth.shape[2] != 3 or detectable.shape != truth.shape[:2]:
         raise ValueError(f"truth, detectable: need truth (T, K, 3) and detectable (T, K), got {truth.shape} and {detectable.shape}")
-    if detectable.size == 0:
-        detectable = detectable.astype(bool)
-    elif detectable.dtype.kind in "iu" and np.all((detectable == 0) | (detectable == 1)):
-        detectable = detectable.astype(bool)  # 0 / 1 was taken before the checks
-    if detectable.dtype != bool:
-        raise ValueError(f"detectable: expected booleans (or 0 and 1), got {detectable.dtype}")
+    given, detectable = detectable, flags(detectable)  # 0 / 1 was taken before the checks
+    if detectable is None:
+        raise ValueError(f"detectable: expected booleans (or 0 and 1), got {given.dtype}")
     if np.any(detectable & ~np.isfinite(truth).all(axis=2)):
         raise ValueError("truth, detectable: a detectable step has no true position")
     if np.any(np.isinf(truth)) or np.any(np.isnan(truth).any(axis=2) != np.isnan(truth).all(axis=2)):

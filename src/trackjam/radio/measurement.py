@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from trackjam.arguments import amounts, numeric, points, real, shown, together
+from trackjam.arguments import amounts, flags, numeric, points, real, shown, together
 from trackjam.radio.antenna import AntennaModel, detection_probability, received_power
 
 
@@ -191,14 +191,14 @@ def sample_scan_multi(
 def _flags(name: str, value, k: int) -> np.ndarray:
     """``value`` as a bool vector of ``k`` entries: booleans, or the integers 0 and 1."""
     a = np.asarray(value)
-    if a.dtype != bool and a.size:  # an empty list (no target) is read as floats
-        if a.dtype.kind not in "iu":
-            raise TypeError(f"{name}: expected booleans (or 0 and 1), one per target, got {a.dtype} {shown(a)}")
-        if not np.all((a == 0) | (a == 1)):
-            raise ValueError(f"{name}: expected booleans (or 0 and 1), got {shown(a)}")
+    b = flags(a)  # an empty list (no target) is read as floats, and taken
+    if b is None and a.dtype.kind not in "iu":
+        raise TypeError(f"{name}: expected booleans (or 0 and 1), one per target, got {a.dtype} {shown(a)}")
+    if b is None:
+        raise ValueError(f"{name}: expected booleans (or 0 and 1), got {shown(a)}")
     if a.shape != (k,):
         raise ValueError(f"{name}: expected one entry per target ({k}), got shape {a.shape}")
-    return a.astype(bool, copy=False)
+    return b
 
 
 def _exposure_arguments(X, exists, detectable, u, aim, level_w, ant):
