@@ -310,7 +310,7 @@ def test_a_keyword_holding_an_integer_past_4300_digits_inside_a_list_is_named():
     from trackjam.errors import ConfigError
 
     # it was Python's "Exceeds the limit (4300 digits)" while the message's label was made
-    with pytest.raises(ConfigError, match=r"^load_scenario\(agents__initial=<a list holding an integer .*\): "
+    with pytest.raises(ConfigError, match=r"^load_scenario\(agents__initial=\[\[<an integer of about 5001 digits>, 0, 0\]\]\): "
                                           r"agents\.initial\.0\.0: must be a finite number, got an integer of 5001 digits$"):
         trackjam.load_scenario("paper-fig3", agents__initial=[[10**5000, 0, 0]])
 

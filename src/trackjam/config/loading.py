@@ -625,14 +625,10 @@ def _deep_copy(d: Any) -> Any:
 
 
 def _shown_value(value: Any) -> str:
-    """A keyword's value for a message: its repr, but an integer of more digits than Python
-    prints (4300) by its length, and everything on one line (a numpy array's repr has several)."""
-    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 14_000:
-        return f"<an integer of about {int(value.bit_length() * 0.30103) + 1} digits>"
-    try:
-        return " ".join(repr(value).split())
-    except ValueError:  # an integer past 4300 digits inside a list or a mapping
-        return f"<a {type(value).__name__} holding an integer of more than 4300 digits>"
+    """A keyword's value for a message: ``errors.bounded_repr`` (built only as far as shown, an
+    integer of more digits than Python prints named by its size), on one line (a numpy array's
+    repr has several)."""
+    return " ".join(bounded_repr(value, SET_SHOWN).split())
 
 
 def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
