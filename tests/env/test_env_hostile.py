@@ -175,3 +175,23 @@ def test_close_in_with_greedy_is_refused_as_the_configuration_refuses_it():
         solver_policy(env, "greedy")
     env.step(solver_policy(env, "grasp")(obs))  # grasp takes close_in
     assert env.sim.t == 1 and env.sim.c.plan.solver == "grasp"
+
+
+@pytest.mark.parametrize("action", [[True, 1], [np.True_, 0], np.array([True, False])])
+def test_a_boolean_action_index_is_refused_as_the_engine_refuses_it(scenario, action):
+    # numpy read [True, 1] as the integers [1, 1] and the step moved agent_0 by move 1
+    env = parallel_env(scenario)
+    env.reset(seed=1)
+    actions = {a: [0, 0] for a in env.agents}
+    actions["agent_0"] = action
+    with pytest.raises(ValueError, match=r"^agent_0: action \[.*\] is outside the action space"):
+        env.step(actions)
+
+
+def test_a_huge_action_is_named_by_its_shape_not_printed(scenario):
+    env = parallel_env(scenario)
+    env.reset(seed=1)
+    actions = {a: [0, 0] for a in env.agents}
+    actions["agent_1"] = np.zeros(10**6, dtype=np.int64)
+    with pytest.raises(ValueError, match=r"^agent_1: action an array of shape \(1000000,\) is outside"):
+        env.step(actions)

@@ -332,3 +332,31 @@ def test_the_coasted_track_goes_on_from_the_last_coast_and_equals_the_coast_from
     assert np.array_equal(agent.coasted_track(1.0)[0], cv_coast(mean, cov, 1.0, 39)[0])  # another accel_var
     agent.remember(0.9, mean + 1.0, cov)  # a new track: coasted from it
     assert np.array_equal(agent.coasted_track(0.5)[0], mean + 1.0)
+
+
+@pytest.mark.parametrize("preset, extra", [("paper-fig3", ["control.grasp.samples=300", "control.grasp.iterations=5"]),
+                                          ("pursuit", [])])
+def test_with_every_message_delivered_every_agent_decides_the_same_x_bar_and_plan(monkeypatch, preset, extra):
+    # the team acts as one: each agent forms x_bar from the same predictions and adopts the same
+    # best plan, though its filter draws its own random numbers (under share: scans the agents'
+    # own estimates differ), as the README says
+    from trackjam.simulation import team as team_module
+
+    decided = []
+    original = team_module.Team.decide
+
+    def spy(self, *args, **kwargs):
+        out = original(self, *args, **kwargs)
+        decided.append(out[0])
+        return out
+
+    monkeypatch.setattr(team_module.Team, "decide", spy)
+    r = simulate(load_scenario(preset, ["steps=8", "filter.particles=500", "filter.birth_particles=100"] + extra))
+    assert len(decided) == 8
+    for step in decided:
+        assert len({d.mode for d in step}) == 1 and all(d.heard == 3 for d in step)
+        for field in ("x_bar", "aim"):
+            values = [getattr(d, field) for d in step]
+            assert all(v is None for v in values) or all(np.array_equal(v, values[0]) for v in values)
+    if preset == "pursuit":  # its own estimates are each agent's own
+        assert np.any(np.ptp(by_agent(r, "existence"), axis=1) > 0)

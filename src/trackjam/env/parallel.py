@@ -22,10 +22,12 @@ from pettingzoo import ParallelEnv
 
 from trackjam.arguments import text_path
 from trackjam.control.solve import SOLVERS
+from trackjam.errors import bounded_repr
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
 from trackjam.files import special_file
 from trackjam.simulation.build import figure_settings, is_scenario, solver_allowed, with_seed
+from trackjam.simulation.actions import has_bool
 from trackjam.simulation.engine import Simulation, StepRecord
 from trackjam.world.moves import admissible_moves
 
@@ -40,8 +42,11 @@ CLOSED = "closed"
 
 
 def _shown(action) -> str:
-    """An action as the message shows it: a numpy array as the list it holds (``[79, 0]``)."""
-    return repr(action.tolist()) if isinstance(action, np.ndarray) else repr(action)
+    """An action as the message shows it, at most 60 characters: a numpy array as the list it
+    holds (``[79, 0]``), a large one by its shape."""
+    if isinstance(action, np.ndarray):
+        return bounded_repr(action.tolist(), 60) if action.size <= 64 else f"an array of shape {action.shape}"
+    return bounded_repr(action, 60)
 
 
 def _check_replay_path(path) -> None:
@@ -176,7 +181,8 @@ class TrackjamParallelEnv(ParallelEnv):
         for name in self.agents:
             j, space = self._index[name], self._action_spaces[name]
             a = np.asarray(actions[name])
-            if a.shape != (2,) or a.dtype.kind not in "iu" or not space.contains(a.astype(space.dtype)):
+            bad = a.shape != (2,) or a.dtype.kind not in "iu" or has_bool(actions[name])  # numpy reads True as 1
+            if bad or not space.contains(a.astype(space.dtype)):
                 raise ValueError(
                     f"{name}: action {_shown(actions[name])} is outside the action space "
                     f"MultiDiscrete({space.nvec.tolist()}) ([move, level] indices)"
@@ -257,12 +263,12 @@ class TrackjamParallelEnv(ParallelEnv):
         if self.sim.t == 0:
             raise RuntimeError("render(): nothing to draw before the first step")
         res = self.sim.result()
+        settings = replace(figure_settings(res.scenario), solver=self._acted(res.agents["mode"]))
         if self.render_mode == "replay":
             from trackjam.files import atomic_write
             from trackjam.viz.replay import write_replay
 
-            return atomic_write(self.replay_path,
-                                lambda p: write_replay(res.steps, res.agents, figure_settings(res.scenario), p))
+            return atomic_write(self.replay_path, lambda p: write_replay(res.steps, res.agents, settings, p))
         import tempfile
         from pathlib import Path
 
@@ -271,9 +277,19 @@ class TrackjamParallelEnv(ParallelEnv):
         from trackjam.viz.figure import plot_run
 
         with tempfile.TemporaryDirectory() as tmp:
-            png = plot_run(res.steps, res.agents, figure_settings(res.scenario), Path(tmp) / "run.png")
+            png = plot_run(res.steps, res.agents, settings, Path(tmp) / "run.png")
             img = matplotlib.image.imread(png)
         return np.round(img[..., :3] * 255).astype(np.uint8)
+
+    def _acted(self, modes) -> str:
+        """Who chose the episode's actions, for the figure's title: the solver that planned
+        (``Planned`` may name another than the scenario's ``control.solver``), ``external`` for a
+        controller's own actions, or both."""
+        acted = set(np.asarray(modes).tolist()) - {"down"}
+        if acted <= {"external"}:
+            return "external"
+        solver = self.sim.c.plan.solver
+        return f"{solver} and external" if "external" in acted else solver
 
     def close(self) -> None:
         """End the episode: the environment holds no outside resource, so this only makes a

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from trackjam.errors import bounded_repr
 from trackjam.world.moves import admissible_moves
 
 
@@ -23,7 +24,7 @@ def checked_actions(actions, positions: np.ndarray, displacements: np.ndarray, n
             a = np.asarray(given)
         except (ValueError, TypeError):  # ragged nested lists
             a = np.asarray(None)
-        if a.shape != (n,) or a.dtype.kind not in "iu" or _has_bool(given):
+        if a.shape != (n,) or a.dtype.kind not in "iu" or has_bool(given):
             raise ValueError(f"actions: {name} must be {n} integers (one per agent), got {_shown(given)}")
         bad = np.flatnonzero((a < 0) | (a >= size))
         if bad.size:
@@ -37,7 +38,7 @@ def checked_actions(actions, positions: np.ndarray, displacements: np.ndarray, n
     return moves, out[1]
 
 
-def _has_bool(given) -> bool:
+def has_bool(given) -> bool:
     """A True or False among the entries (a 0-d array of one too): numpy reads [True, 0, 0] as
     the integers [1, 0, 0]."""
     if isinstance(given, np.ndarray):
@@ -50,5 +51,4 @@ def _has_bool(given) -> bool:
 
 
 def _shown(value) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+    return bounded_repr(value, 60)

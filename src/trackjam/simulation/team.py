@@ -177,6 +177,9 @@ class Team:
             for j in working:
                 decisions[j] = Decision("external", int(moves[j]), int(levels[j]), x_bars[j], x_bars[j], np.nan,
                                         len(self.fresh(j)))
+            # the plan round runs with no plans, so that its losses are drawn as a solver's step
+            # draws them: an external controller meets the same lost messages on the same seed
+            self.exchange.send(self.t, "plan", [])
             return decisions, time.perf_counter() - t0
         proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan, t0, told is not None)
         inboxes = self.exchange.send(self.t, "plan", [Message(p.sender, "plan", self.t, plan=p) for p in proposals])
