@@ -60,6 +60,10 @@ def test_spaces_and_layout():
     assert (n_moves, n_levels) == (79, 4)
     assert env.action_space("agent_2").nvec.tolist() == [79, 4]
     assert env.observation_space("agent_0").shape == (33,) == (len(observation_layout(3)),)
+    # the dicts some wrappers read (an AttributeError before), the same objects as the methods give
+    assert set(env.action_spaces) == set(env.observation_spaces) == set(env.possible_agents)
+    assert all(env.action_spaces[a] is env.action_space(a) for a in env.possible_agents)
+    assert all(env.observation_spaces[a] is env.observation_space(a) for a in env.possible_agents)
 
 
 def test_observation_holds_position_own_estimate_and_what_teammates_announced():

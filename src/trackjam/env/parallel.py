@@ -99,8 +99,8 @@ class TrackjamParallelEnv(ParallelEnv):
         self._index = {name: j for j, name in enumerate(self.possible_agents)}
         n_moves, n_levels = len(c.displacements), len(c.antenna.levels_w)
         lo, hi = observation_bounds(c.n_agents, c.low, c.high)
-        self._action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
-        self._observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
+        self.action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
+        self.observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
         self._seed: int | None = None
         self._solvers_ok: set[str] = set()
         self._ended: str | None = NOT_STARTED
@@ -115,11 +115,11 @@ class TrackjamParallelEnv(ParallelEnv):
 
     def observation_space(self, agent: str) -> spaces.Box:
         self._agent(agent)
-        return self._observation_spaces[agent]
+        return self.observation_spaces[agent]
 
     def action_space(self, agent: str) -> spaces.MultiDiscrete:
         self._agent(agent)
-        return self._action_spaces[agent]
+        return self.action_spaces[agent]
 
     def check_solver(self, solver: str) -> None:
         """Refuse a solver the scenario's configuration would refuse with ``control.solver`` set
@@ -179,7 +179,7 @@ class TrackjamParallelEnv(ParallelEnv):
         moves = np.zeros(len(self.possible_agents), dtype=np.int64)
         levels = np.zeros(len(self.possible_agents), dtype=np.int64)
         for name in self.agents:
-            j, space = self._index[name], self._action_spaces[name]
+            j, space = self._index[name], self.action_spaces[name]
             a = np.asarray(actions[name])
             bad = a.shape != (2,) or a.dtype.kind not in "iu" or has_bool(actions[name])  # numpy reads True as 1
             if bad or not space.contains(a.astype(space.dtype)):
