@@ -325,3 +325,17 @@ def test_an_option_the_swarm_engine_does_not_simulate_is_blamed_on_its_set(tmp_p
     f.write_text(scenario_to_yaml(load_scenario("swarm-3", ["comms.loss=0.1"])))
     r = runner.invoke(app, ["validate", str(f), "--set", "steps=2"])
     assert r.exit_code == 2 and r.output == f"trackjam: error: {problem}\n"
+
+
+@pytest.mark.parametrize("occlusions, appears, words", [
+    ("[]", 1, "no hidden spell between detectable steps"),
+    ("[[1, 30]]", 1, "no detectable step"),  # it had said "no undetectable spell" of a target hidden throughout
+    ("[[25, 30]]", 1, "no hidden spell between detectable steps"),  # hidden at the end: not a spell to re-acquire after
+])
+def test_the_re_acquisition_row_says_why_there_is_nothing_to_show(tmp_path, occlusions, appears, words):
+    r = CliRunner().invoke(app, ["run", "paper-fig3", "--out", str(tmp_path / "r"), "--set", "steps=30",
+                                 "--set", f"target.occlusions={occlusions}", "--set", "filter.particles=300",
+                                 "--set", "filter.birth_particles=60", "--no-figures"])
+    assert r.exit_code == 0, r.output
+    row = next(line for line in r.output.splitlines() if "re-acquired after each hidden spell" in line)
+    assert words in row

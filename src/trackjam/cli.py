@@ -465,8 +465,8 @@ def _quality_rows(m: dict) -> list[tuple[str, str]]:
     truth"): a confirmed track that has slipped off the target counts as a false track."""
     gate, n = f"{m['gate_m']:g}", m["detectable_steps"]
     reacq = m["reacquisition_steps"]
-    if not reacq:
-        again = "no undetectable spell"
+    if not reacq:  # a spell counts only between detectable steps (before the first, or at the end, it does not)
+        again = "no detectable step" if n == 0 else "no hidden spell between detectable steps"
     else:
         again = ", ".join("never" if r is None else f"after {r}" for r in reacq) + " [steps]"
     first = m["first_acquisition_steps"]

@@ -22,6 +22,28 @@ def test_error_bars_stop_at_the_floor():
     assert error_bars([3.0], [5.0], floor=2.0) == [[1.0], [5.0]]
 
 
+def test_error_bars_stop_at_the_ceiling_too():
+    # a share's t-interval over 2 trials had reached 2.5 in holding.png's panel (a)
+    below, above = error_bars([0.4, 0.9, 1.0, math.nan], [2.1, 0.05, 0.3, 1.0], floor=0.0, ceiling=1.0)
+    assert below == pytest.approx([0.4, 0.05, 0.3, 0.0]) and above == pytest.approx([0.6, 0.05, 0.0, 0.0])
+
+
+def test_the_holding_figure_keeps_every_share_within_0_and_1_and_says_when_a_panel_is_empty():
+    holding = get_experiment("holding")
+    rows = _rows(holding, means=0.5, ci=2.0)  # 2 trials: a t-interval far past 1
+    for row in rows:
+        row.update({"reacquired": 0, "reacquired_of": 0, "reacquired_lo": "", "reacquired_hi": ""})
+    fig = experiment_figure(holding, rows)
+    shares, again = fig.axes[0], fig.axes[1]
+    for container in shares.containers:
+        if hasattr(container, "lines"):
+            segments = np.concatenate([lc.get_segments() for lc in container.lines[2]])
+            assert segments[:, :, 1].min() == pytest.approx(0.0) and segments[:, :, 1].max() == pytest.approx(1.0)
+    assert [t.get_text() for t in again.texts] == [holding.panels[1].empty]
+    assert "hidden spell" in holding.panels[1].empty and again.get_ylim() == (0.0, 1.0)
+    assert not fig.axes[2].texts  # the OSPA panel has its bars
+
+
 def _rows(experiment, means: float, ci: float) -> list[dict]:
     rows = []
     for c in experiment.configurations:

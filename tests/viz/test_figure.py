@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 from trackjam.config import load_scenario
 from trackjam.viz.figure import (
     _panel_cones,
+    _panel_existence,
     _panel_jamming,
     _panel_powers,
     _panel_trajectories,
@@ -350,3 +351,20 @@ def test_the_shaded_spans_are_the_runs_of_consecutive_steps(ks):
     covered = [k for first, last in spans for k in range(first, last + 1)]
     assert covered == sorted(ks)  # every step once, in order
     assert all(b[0] > a[1] + 1 for a, b in zip(spans, spans[1:]))  # runs apart: no two could merge
+
+
+def test_panel_e_rings_the_reported_steps_not_every_step_above_one_half(run):
+    # its 0.5 line had been labelled "target reported", though under filter.visibility or
+    # fusion.report_spread steps above 0.5 go unreported
+    steps, agents, scenario = run
+    T, N = scenario.steps, scenario.n_agents
+    steps = dict(steps)
+    steps["existence"] = np.full(T, 0.7)
+    est = np.asarray(steps["est_x"], dtype=float).copy()
+    est[::2] = np.nan  # every other step unreported
+    steps["est_x"] = est
+    ax = Figure().add_subplot()
+    _panel_existence(ax, steps, agents, np.arange(1.0, T + 1), T, N)
+    ringed = next(line for line in ax.lines if line.get_label() == "reported")
+    assert ringed.get_xdata().tolist() == (np.flatnonzero(np.isfinite(est)) + 1.0).tolist()
+    assert "target reported" not in [line.get_label() for line in ax.lines]

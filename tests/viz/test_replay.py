@@ -245,3 +245,21 @@ def test_replay_renders_a_scene_in_chromium(chromium_path, replay_html, tmp_path
     # without WebGL the page is one grey block with a message: ~240 colours, 0.7 % saturated
     assert 0.1 < non_white < 0.9 and colours > 1000, (non_white, colours)
     assert (saturation > 0.1).mean() > 0.02, (saturation > 0.1).mean()
+
+
+def test_each_frame_names_and_colours_its_steps_track_quality(run):
+    # a false track had been drawn in the same colour as a held one, under a title that said only
+    # "track" (the planning mode)
+    from trackjam.metrics.track_quality import CLASSES, step_classes
+    from trackjam.viz.figure import QUALITY_COLOURS, QUALITY_LABELS
+
+    steps, agents, scenario = run
+    fs = figure_settings(scenario)
+    names = np.asarray(CLASSES)[step_classes(steps, fs.gate)]
+    assert len(set(names)) > 1  # the fake run has more than one class
+    fig = replay_figure(steps, agents, fs)
+    for k, frame in enumerate(fig["frames"]):
+        title = frame["layout"]["title"]["text"]
+        assert f"track quality: {QUALITY_LABELS[names[k]]}" in title
+        marker = next(tr for tr in frame["data"] if tr["name"].startswith("reported estimate"))
+        assert marker["marker"]["color"] == QUALITY_COLOURS[names[k]]

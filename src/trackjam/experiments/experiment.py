@@ -5,6 +5,8 @@ themselves are in :mod:`trackjam.experiments.definitions` and, for several targe
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -41,13 +43,17 @@ class Configuration:
 @dataclass(frozen=True)
 class Panel:
     """One panel of an experiment's figure: a bar per configuration and series, with its 95 %
-    interval, clipped at ``floor`` (the metric's physical lower bound)."""
+    interval, clipped at ``floor`` and ``ceiling`` (the metric's physical bounds: a share's
+    t-interval over 2 trials had reached 2.5); ``empty`` is written in a panel no trial gives a
+    value to."""
 
     title: str
     ylabel: str
     series: tuple[tuple[str, str | None], ...]  # (metric or count stem, legend or None)
     floor: float = 0.0
     log: bool | None = None  # a log axis; None: when several series are all positive (powers)
+    ceiling: float = math.inf
+    empty: str = "no trial gives a value here"
 
 
 FIG4_PANELS = (

@@ -1,8 +1,8 @@
 """An experiment's figure: the panels its definition names (default: the paper's Fig. 4), one
 bar per configuration and series with its 95 % confidence interval, from summary.csv's rows.
 
-An interval is clipped at its panel's physical floor (no negative incidents, watts or metres):
-with few trials the t-interval is wide and would otherwise reach below zero.
+An interval is clipped at its panel's physical bounds (no negative incidents, watts or metres,
+no share above 1): with few trials the t-interval is wide and would otherwise reach past them.
 """
 
 from __future__ import annotations
@@ -20,14 +20,15 @@ def _num(v: Any) -> float:
     return float(v)
 
 
-def error_bars(means: list[float], ci95: list[float], floor: float) -> list[list[float]]:
+def error_bars(means: list[float], ci95: list[float], floor: float,
+               ceiling: float = math.inf) -> list[list[float]]:
     """[below, above] error-bar lengths: the interval's half-width, the part below cut at
-    ``floor`` (NaN intervals draw no bar)."""
+    ``floor`` and the part above at ``ceiling`` (NaN intervals draw no bar)."""
     below, above = [], []
     for m, e in zip(means, ci95):
         e = 0.0 if math.isnan(e) or math.isnan(m) else e
         below.append(max(min(e, m - floor), 0.0) if not math.isnan(m) else 0.0)
-        above.append(e)
+        above.append(max(min(e, ceiling - m), 0.0) if not math.isnan(m) else 0.0)
     return [below, above]
 
 
@@ -35,12 +36,13 @@ def error_bars(means: list[float], ci95: list[float], floor: float) -> list[list
 COLOURS = {"held": "#2ca02c", "false_track": "#ff7f0e", "missed": "#d62728", "ceiling": "0.6"}
 
 
-def _series(rows: list[dict[str, Any]], stem: str, floor: float) -> tuple[list[float], list[list[float]]]:
+def _series(rows: list[dict[str, Any]], stem: str, floor: float,
+            ceiling: float = math.inf) -> tuple[list[float], list[list[float]]]:
     """Bar heights and their [below, above] error lengths: a metric's mean and its ci95, or a
     count's share k / n and its Clopper-Pearson bounds."""
     if f"{stem}_mean" in rows[0]:
         m = [_num(r[f"{stem}_mean"]) for r in rows]
-        return m, error_bars(m, [_num(r[f"{stem}_ci95"]) for r in rows], floor)
+        return m, error_bars(m, [_num(r[f"{stem}_ci95"]) for r in rows], floor, ceiling)
     m, below, above = [], [], []
     for r in rows:
         n = _num(r[f"{stem}_of"])
@@ -66,7 +68,7 @@ def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
         width = 0.8 / len(panel.series)
         values = []
         for i, (stem, legend) in enumerate(panel.series):
-            m, err = _series(rows, stem, panel.floor)
+            m, err = _series(rows, stem, panel.floor, panel.ceiling)
             offset = (i - (len(panel.series) - 1) / 2) * width
             ax.bar([v + offset for v in x], m, width, yerr=err, capsize=3, label=legend, color=COLOURS.get(stem))
             values += m
@@ -77,6 +79,10 @@ def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
                 ax.set_yscale("log")
             elif panel.ylabel.startswith("share"):  # room for the legend above the bars
                 ax.set_ylim(0, 1.35)
+        if all(math.isnan(v) for v in values):  # an empty axis from -0.05 to 0.05 said nothing
+            ax.text(0.5, 0.5, panel.empty, transform=ax.transAxes, ha="center", va="center", fontsize=9,
+                    color="0.3")
+            ax.set_ylim(0, 1 if math.isfinite(panel.ceiling) else None)
         ax.set_title(panel.title)
         ax.set_ylabel(panel.ylabel)
         if slanted:

@@ -413,9 +413,14 @@ def _panel_existence(ax, steps, agents, t, T, N) -> None:
     own = agent_table(agents, "existence", T, N)
     for j in range(N):
         ax.plot(t, own[:, j], color=agent_colour(j), lw=0.8, alpha=0.6)
-    ax.plot(t, np.asarray(steps["existence"], dtype=float), color=TARGET_POWER_COLOUR, lw=2,
-            marker=".", label="fused existence")
-    ax.axhline(0.5, color="k", ls="--", lw=1, label="0.5: target reported")
+    fused = np.asarray(steps["existence"], dtype=float)
+    ax.plot(t, fused, color=TARGET_POWER_COLOUR, lw=2, marker=".", label="fused existence")
+    # the steps the team reported: above 0.5 is not the report rule under filter.visibility or
+    # fusion.report_spread, and a line labelled "target reported" had said so
+    reported = np.isfinite(np.asarray(steps["est_x"], dtype=float))
+    ax.plot(t[reported], fused[reported], ls="none", marker="o", ms=6, mfc="none", mec="k", mew=1.0,
+            label="reported")
+    ax.axhline(0.5, color="k", ls="--", lw=1, label="0.5")
     ax.set_ylim(-0.03, 1.03)
     ax.set_ylabel("P(target exists)")
     ax.set_title("(e) existence probability (thin: each agent's own)", loc="left", fontsize=10)

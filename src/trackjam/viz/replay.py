@@ -21,6 +21,8 @@ from trackjam.radio.antenna import AntennaModel
 from trackjam.viz.figure import (
     ESTIMATE_COLOUR,
     JAM_COLOUR,
+    QUALITY_COLOURS,
+    QUALITY_LABELS,
     TRUTH_COLOUR,
     Columns,
     agent_colour,
@@ -32,6 +34,7 @@ from trackjam.viz.figure import (
     run_shape,
     steps_xyz,
 )
+from trackjam.metrics.track_quality import CLASSES, step_classes
 from trackjam.viz.settings import FigureSettings
 
 MAX_FRAMES = 150  # the page and its memory stay bounded whatever the run's length
@@ -80,9 +83,12 @@ def shown_steps(T: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, T - 1, max_frames)).astype(int))
 
 
-def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant, labels, delta):
+def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant, labels, delta,
+                quality):
     """All traces of frame ``f`` (step index ``shown[f]``), always in the same order (plotly
-    frames update by index). Trails pass through the last ``TRAIL_FRAMES`` shown steps."""
+    frames update by index). Trails pass through the last ``TRAIL_FRAMES`` shown steps. The
+    estimate is drawn in its step's track-quality colour (the run figure's band (i)), so a false
+    track does not look held."""
     k = shown[f]
     N = u.shape[1]
     path = shown[max(f + 1 - TRAIL_FRAMES, 0): f + 1]
@@ -90,7 +96,7 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
         _trail(truth[path], "target trail", TRUTH_COLOUR, 4, showlegend=False),
         _point(truth[k], "target (truth)", TRUTH_COLOUR, "diamond", 6),
         _trail(est[path], "estimate trail", ESTIMATE_COLOUR, 3, showlegend=False),
-        _point(est[k], "fused estimate", ESTIMATE_COLOUR, "circle-open", 7),
+        _point(est[k], "reported estimate (colour: track quality)", QUALITY_COLOURS[quality[k]], "circle-open", 7),
     ]
     # u_path row 0 is the start, row k + 1 is step k
     agent_path = np.concatenate([[0], path + 1]) if path[0] == 0 else path + 1
@@ -123,7 +129,7 @@ def _db(w: float) -> str:
     return "0 W" if w <= 0 else f"{10 * np.log10(w):.1f} dBW"
 
 
-def _title(steps: Columns, k: int) -> str:
+def _title(steps: Columns, k: int, quality: np.ndarray | None = None) -> str:
     e = float(steps["existence"][k])
     ospa = float(steps["ospa"][k])
     exists = bool(steps["target_exists"][k])
@@ -131,8 +137,10 @@ def _title(steps: Columns, k: int) -> str:
     state = "present" if seen else ("occluded" if exists else "absent")
     title = (f"t = {int(steps['t'][k])}   |   fused existence {e:.2f}   |   OSPA {ospa:.2f} m"
              f"   |   target {state}   |   received at target {_db(float(steps['target_received_w'][k]))}")
+    if quality is not None:
+        title += f"   |   track quality: {QUALITY_LABELS[quality[k]]}"
     if "mode" in steps:  # the loop's planning mode, when it logs one
-        title += f"   |   {steps['mode'][k]}"
+        title += f"   |   planning: {steps['mode'][k]}"
     return title
 
 
@@ -152,14 +160,15 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
     jammed = agent_table(agents, "jammed", T, N) > 0.5
     R = interference_per_step(agents, fs, shown)  # row f is step shown[f]
     labels = level_labels(fs)
+    quality = np.asarray(CLASSES)[step_classes(steps, fs.gate)]
 
     every = "" if len(shown) == T else f"   |   {len(shown)} of {T} steps shown"
     frames = [
         dict(
             name=str(int(steps["t"][k])),
             data=_frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant,
-                             labels, ant.delta_w),
-            layout=dict(title=dict(text=_title(steps, k) + every)),
+                             labels, ant.delta_w, quality),
+            layout=dict(title=dict(text=_title(steps, k, quality) + every)),
         )
         for f, k in enumerate(shown)
     ]
