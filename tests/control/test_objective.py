@@ -3,6 +3,7 @@
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -95,3 +96,54 @@ def test_interference_is_the_eq13_sum():
     r = received_interference(gain, levels_w, cand, level)
     for i in range(N):
         assert np.isclose(r[i], sum(levels_w[level[j]] * gain[i, j, cand[i], cand[j]] for j in range(N) if j != i))
+
+
+def _plain_feasible(gain, levels_w, delta, cand, level):
+    """Eq. (13) in plain numpy, loop by loop: receiver i sums sender j's level times gain[i, j]."""
+    N = len(cand)
+    for i in range(N):
+        r = sum(levels_w[level[j]] * gain[i, j, cand[i], cand[j]] for j in range(N) if j != i)
+        if r >= delta:
+            return False
+    return True
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 5), st.integers(1, 4), st.integers(0, 2**32 - 1), st.floats(1e-6, 1e-1))
+def test_the_compiled_eq13_check_matches_plain_numpy_and_the_vectorised_left_side(N, C, seed, delta):
+    from trackjam.control.objective import kernel_feasible
+
+    rng = np.random.default_rng(seed)
+    gain = rng.exponential(1e-3, (N, N, C, C)) * (rng.random((N, N, C, C)) < 0.7)
+    gain[np.arange(N), np.arange(N)] = 0.0  # as Problem.gain: no agent receives its own cone
+    levels_w = np.array([0.0, 1e-5, 0.2, 1.12])
+    cand = rng.integers(0, C, N)
+    level = rng.integers(0, 4, N)
+    expected = _plain_feasible(gain, levels_w, delta, cand, level)
+    assert kernel_feasible(gain, levels_w, delta, cand, level) == expected
+    assert bool(np.all(received_interference(gain, levels_w, cand, level) < delta)) == expected
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 3), st.integers(1, 4), st.integers(0, 2**32 - 1), st.booleans())
+def test_the_exact_solvers_starting_value_is_the_belief_mean_of_xi_or_minus_inf_when_jammed(N, S, C, seed, constrained):
+    from trackjam.control.exact import kernel_start_value
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, N + 1))
+    p_s = rng.random((S, N, C, 4))
+    w = rng.random(S)
+    w /= w.sum()
+    gain = rng.exponential(1e-3, (N, N, C, C))
+    levels_w = np.array([0.0, 1e-5, 0.2, 1.12])
+    delta = float(rng.choice([1e-6, 1e-4, 1e-2]))
+    cand, level = rng.integers(0, C, N), rng.integers(0, 4, N)
+    got = kernel_start_value(p_s, w, gain, levels_w, delta, n, constrained, cand, level)
+    if constrained and not _plain_feasible(gain, levels_w, delta, cand, level):
+        assert got == -np.inf
+    else:  # the plain mean over the samples of Eq. (12) written subset by subset
+        pv = p_s[:, np.arange(N), cand, level]
+        brute = sum(w[s] * sum(np.prod([pv[s, i] if i in on else 1 - pv[s, i] for i in range(N)])
+                               for m in range(n, N + 1) for on in itertools.combinations(range(N), m))
+                    for s in range(S))
+        assert got == pytest.approx(brute, abs=1e-12)
