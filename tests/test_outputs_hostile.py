@@ -434,6 +434,9 @@ def test_an_experiment_of_one_trial_prints_its_means_without_nan(tmp_path):
     assert "nan" not in r.output.lower()  # one trial has no interval: it printed "0.5 ± nan"
     assert f"({out / 'summary.csv'})" in r.output
     assert (_mean_ci(0.5, float("nan")), _mean_ci(0.5, 0.25), _mean_ci(float("nan"), float("nan"))) == ("0.5", "0.5 ± 0.25", "-")
+    # a paired share's rounding (0.1 + 0.2 - 0.3) had printed "+6.94e-16 ± 13"
+    assert _mean_ci(0.1 + 0.2 - 0.3, 0.13, 100, signed=True) == "+0 ± 13"
+    assert _mean_ci(1e-3, 0.13, 100, signed=True) == "+0.1 ± 13"
 
 
 @pytest.mark.parametrize("seed", ["-1", str(2**63)])

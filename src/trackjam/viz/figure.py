@@ -264,7 +264,7 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
             ax.axvspan(first - 0.5, last + 0.5, color=OCCLUSION_COLOUR, alpha=0.18, lw=0, zorder=0)
         ax.set_xlim(0.5, T + 0.5)
         ax.grid(True, alpha=0.3)
-        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True, min_n_ticks=1))
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
     ax_quality.set_xlabel("time step t  (dT = 1 s)")
@@ -272,7 +272,7 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
     if len(occ):
         handles.append(Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded"))
     ax_level.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
-    fig.suptitle(f"trackjam run: {fs.name}  ({N} agents, {T} steps, solver {fs.solver})")
+    fig.suptitle(f"trackjam run: {fs.name}  ({N} agent{'s' * (N != 1)}, {T} step{'s' * (T != 1)}, solver {fs.solver})")
     save_figure(fig, path, format="png")
     plt.close(fig)
     return path

@@ -209,7 +209,7 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
             steps=slider_steps,
         )],
         annotations=[dict(
-            text=(f"{fs.name}: {N} agents, {T} steps"
+            text=(f"{fs.name}: {N} agent{'s' * (N != 1)}, {T} step{'s' * (T != 1)}"
                   + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
                   + f", solver {fs.solver}; "
                   f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
