@@ -514,4 +514,8 @@ def _panel_cones(ax, steps, agents, fs, T, N, k: int, title: str) -> None:
     ax.set_zlim(lo[2], hi[2])
     ax.set_box_aspect(np.maximum(hi - lo, 1e-9))
     ax.tick_params(labelsize=7)
+    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):  # a narrow axis had piled up its labels
+        axis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
+        axis.set_label_text(f"{name} [m]", fontsize=7)
+        axis.labelpad = -2
     ax.set_title(title, fontsize=9)
