@@ -187,6 +187,14 @@ def test_suspicious_values_warn_one_line_each_and_validate_still_says_ok():
     assert "agents.initial: [0], [2], [3]" in lines[3]
 
 
+def test_a_delay_that_outlasts_the_run_is_warned_about():
+    r = trackjam("validate", "paper-fig3", "--set", "comms.delay_steps=30")
+    assert r.returncode == 0 and r.stdout.startswith("ok"), r.stderr
+    assert r.stderr.splitlines() == ["trackjam: warning: comms.delay_steps: 30 is not less than steps (30); no "
+                                     "teammate's message ever arrives, and each agent acts alone on its own filter"]
+    assert trackjam("validate", "paper-fig3", "--set", "comms.delay_steps=29").stderr == ""
+
+
 def test_an_ordinary_scenario_gives_no_warning():
     r = trackjam("validate", "paper-fig3")
     assert r.returncode == 0 and r.stderr == ""

@@ -309,12 +309,16 @@ def test_messages_in_flight_count_in_the_memory_check(monkeypatch):
                                        f"agents.initial={[[50.0, 50.0, 10.0 + i] for i in range(48)]}"])
     assert limits.estimate(big)["memory_messages"][0] > 1e9
     assert "memory_messages" not in limits.estimate(load_scenario("paper-fig3"))
+    # no message due after the last step is held: a delay past a short run costs what the run does
+    short = load_scenario("paper-fig3", ["comms.delay_steps=1000", "steps=5"])
+    assert limits.estimate(short)["memory_messages"][0] == pytest.approx(
+        limits.estimate(load_scenario("paper-fig3", ["comms.delay_steps=5", "steps=5"]))["memory_messages"][0])
     monkeypatch.setattr(limits, "memory_budget", lambda: 200e6)
     with pytest.raises(ConfigError, match=r"comms.delay_steps: a run would hold about .* of memory"):
         load_scenario("paper-fig3", ["comms.delay_steps=1000", "steps=1005",
                                      f"agents.initial={[[50.0, 50.0, 10.0 + i] for i in range(16)]}"])
     # measured: 8 agents, 20 steps of delay, small filters; the pending messages after 22 steps
-    s = load_scenario("paper-fig3", ["comms.delay_steps=20", "steps=25", "filter.particles=200",
+    s = load_scenario("paper-fig3", ["comms.delay_steps=20", "steps=60", "filter.particles=200",
                                      "filter.birth_particles=50", "control.solver=exact",
                                      f"agents.initial={[[40.0 + 3 * i, 45.0, 30.0] for i in range(8)]}"])
     sim = Simulation(s)

@@ -104,6 +104,55 @@ def test_delayed_messages_arrive_exactly_late():
     assert stamps == [[], [], [1], [2], [3]]
 
 
+def test_a_message_due_after_the_last_step_is_never_queued():
+    # at comms.delay_steps 1000 every message of a short run had been held to the end (64 agents
+    # x 1000 steps: 12 million entries, 777 MB); none of them could ever arrive
+    ex = Exchange(2, settings(delay_steps=2, last_step=4), np.random.default_rng(0))
+    stamps = []
+    for t in range(1, 5):
+        boxes = ex.send(t, "posterior", [Message(0, "posterior", t), Message(1, "posterior", t)])
+        stamps.append([m.stamp for m in boxes[1] if m.sender == 0])
+        assert all(arrival <= 4 for arrival, _ in ex.pending)
+    assert stamps == [[], [], [1], [2]] and not ex.pending  # what is due by step 4 still arrives
+
+
+def test_a_run_whose_delay_outlasts_it_queues_nothing_and_acts_as_before(monkeypatch):
+    from trackjam.simulation import team as team_module
+    from trackjam.simulation.engine import Simulation
+
+    s = load_scenario("paper-fig3", FAST + ["steps=4", "comms.delay_steps=6"])
+    queued = []
+    original = team_module.Exchange.send
+
+    def spy(self, t, kind, messages):
+        out = original(self, t, kind, messages)
+        queued.append(sum(len(v) for v in self.pending.values()))
+        return out
+
+    monkeypatch.setattr(team_module.Exchange, "send", spy)
+    sim = Simulation(s)
+    while not sim.done:
+        sim.step()
+    assert queued and max(queued) == 0
+    # the same run with the messages queued (no last step known): the same logs
+    monkeypatch.setattr(team_module.Exchange, "send", original)
+    from dataclasses import replace
+
+    old = Simulation(s)
+    old.c = replace(old.c, team=replace(old.c.team, last_step=None))
+    old.team.exchange.s = old.c.team
+    while not old.done:
+        old.step()
+    a, b = sim.result(), old.result()
+    for col in a.agents:
+        if not col.endswith("_s"):
+            np.testing.assert_array_equal(a.agents[col], b.agents[col])
+    for col in a.steps:
+        if not col.endswith("_s"):
+            np.testing.assert_array_equal(a.steps[col], b.steps[col])
+    assert old.team.exchange.pending  # it had held messages that never arrive
+
+
 def test_a_late_message_waits_for_its_own_round_of_the_step():
     """A posterior a step late arrives in the posterior round of the next step, although the
     prediction round of that step comes first (it used to be dropped there)."""

@@ -194,7 +194,7 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
         # 128 bytes) and the message itself (its estimate or scan, about 2.5 kB + 24 per
         # measurement); measured 3.5 kB per message and sender at N = 16, 4.7 kB here
         out["memory_messages"] = (
-            s.comms.delay_steps * N * 3.0 * ((N - 1) * 128.0 + 2500.0 + 24.0 * m),
+            min(s.comms.delay_steps, s.steps) * N * 3.0 * ((N - 1) * 128.0 + 2500.0 + 24.0 * m),
             ("comms.delay_steps", "agents.initial"),
         )
     # planning over the belief (one target; the swarm engine refuses it): S points, each agent's

@@ -32,6 +32,9 @@ def scenario_warnings(s: Scenario) -> list[str]:
     late = [f"comms.failures[{k}]" for k, f in enumerate(s.comms.failures) if f.step > s.steps]
     if late:
         out.append(f"{_few(late)}: start after the last step ({s.steps}); the agent never fails")
+    if s.comms.delay_steps >= s.steps and s.n_agents > 1:
+        out.append(f"comms.delay_steps: {s.comms.delay_steps} is not less than steps ({s.steps}); no teammate's "
+                   "message ever arrives, and each agent acts alone on its own filter")
     c = s.control
     if c.belief_at_least is not None and c.plan_over != "belief":
         out.append(f"control.belief_at_least: {c.belief_at_least} has no effect under control.plan_over: {c.plan_over} "

@@ -260,7 +260,7 @@ def build(s: Scenario) -> Components:
             loss=float(s.comms.loss), delay_steps=int(s.comms.delay_steps), stale=s.comms.stale,
             failures=tuple((f.agent, f.step, f.mode) for f in s.comms.failures),
             aim=AimSettings(lead=c.lead, horizon=c.horizon, reach=max(s.agents.radial_steps)),
-            search_reseed=s.fusion.search_reseed,
+            search_reseed=s.fusion.search_reseed, last_step=int(s.steps),
         ),
         target=target_params(s),
         make_filter=partial(BernoulliFilter, filter_params(s), antenna_model(s)),

@@ -57,6 +57,7 @@ class TeamSettings:
     aim: AimSettings = AimSettings()  # control.lead, control.horizon: the aim ahead of x_bar
     search_reseed: str = "always"  # fusion.search_reseed: "always" | "evidence"
     share: str = "posteriors"  # fusion.share: "posteriors" (CI, the paper) | "scans"
+    last_step: int | None = None  # the run's last step: a message due after it is never queued
 
 
 @dataclass(frozen=True)
@@ -103,6 +104,8 @@ class Exchange:
             inboxes[m.sender].append(m)
             if self.failed(m.sender, t, ("publisher", "channel", "breakdown")):
                 continue
+            if self.s.last_step is not None and t + self.s.delay_steps > self.s.last_step:
+                continue  # due after the run ends: at comms.delay_steps 1000 it had queued millions
             waiting = self.pending.setdefault((t + self.s.delay_steps, kind), [])
             for r in range(self.n):
                 if r != m.sender and not lost[m.sender, r]:
