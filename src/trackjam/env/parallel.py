@@ -286,7 +286,7 @@ class TrackjamParallelEnv(ParallelEnv):
         (``Planned`` may name another than the scenario's ``control.solver``), ``external`` for a
         controller's own actions, or both."""
         acted = set(np.asarray(modes).tolist()) - {"down"}
-        if acted <= {"external"}:
+        if acted and acted <= {"external"}:
             return "external"
         solver = self.sim.c.plan.solver
         return f"{solver} and external" if "external" in acted else solver
