@@ -63,6 +63,21 @@ def test_zero_weights_fall_back_to_the_heaviest_cells_plain_mean():
     assert mode_moments(X, np.zeros(4), 1.0, 0.2) is None
 
 
+def test_an_empty_set_is_refused_before_the_kernel_reads_past_it():
+    """kernel_mode_cluster with no particle read X[0] out of bounds (NUMBA_BOUNDSCHECK=1 caught
+    it): its wrapper refuses an empty set; one particle is its own cluster."""
+    with pytest.raises(ValueError, match="no particles"):
+        mode_moments(np.empty((0, 6)), np.empty(0), 1.0, 0.2)
+    X = np.array([[1.0, 2.0, 3.0, 0.5, 0.0, 0.0]])
+    mean, cov = mode_moments(X, np.ones(1), 1.0, 0.2)
+    np.testing.assert_array_equal(mean, X[0])
+    assert np.all(cov == 0.0)
+    c, m, inside = kernel_mode_cluster(X, np.ones(1), 1.0, 0.8)
+    c_ref, m_ref, inside_ref = mode_cluster_reference(X, np.ones(1), 1.0, 0.8)
+    np.testing.assert_array_equal(c, c_ref)
+    assert m == m_ref == 1.0 and inside.tolist() == inside_ref.tolist() == [True]
+
+
 def test_the_heavier_of_two_clusters_is_found_with_its_share_and_moments():
     rng = np.random.default_rng(0)
     A, B = np.array([20.0, 30.0, 40.0]), np.array([45.0, 30.0, 40.0])  # 25 m apart

@@ -206,8 +206,11 @@ def mode_moments(X: np.ndarray, w: np.ndarray, radius: float, least: float
                  ) -> tuple[np.ndarray, np.ndarray] | None:
     """``filter.mode``: mean and covariance of the particles ``X`` within ``radius`` of the
     densest point of the weighted set (normalised weights ``w``), when they hold at least
-    ``least`` of the weight; None otherwise."""
+    ``least`` of the weight; None otherwise. An empty set is refused (ValueError): the kernel
+    would read past it. The filter never passes one (it holds filter.particles >= 10)."""
     X = np.ascontiguousarray(X)
+    if X.shape[0] == 0:
+        raise ValueError("mode_moments: no particles (the densest cluster of an empty set is undefined)")
     w = np.ascontiguousarray(w, dtype=float)
     _, mass, inside = kernel_mode_cluster(X, w, float(radius), MODE_CELL_SHARE * float(radius))
     if not mass > 0.0 or mass < least:

@@ -227,7 +227,14 @@ def kernel_gaussian_sample(mu, chol, comp, xi):
 @njit(cache=True)
 def kernel_systematic_indices(w, n_out, u0):
     """Systematic resampling: indices of ``n_out`` draws from normalised weights ``w`` with the
-    single uniform offset ``u0`` in [0, 1)."""
+    single uniform offset ``u0`` in [0, 1).
+
+    ``w`` must hold at least one weight: with none it reads ``w[0]`` out of bounds (no check
+    here, in the hot path). Its callers never pass none: the Bernoulli filter resamples its
+    ``filter.particles`` >= 10 particles (each part of a split resampling only when it holds
+    weight), the LMB filter a track's particles, >= ``filter.birth_particles`` >= 1. Weights
+    that sum to less than 1 (all zero included) give the last index for every draw past their
+    sum, as ``np.searchsorted`` of their cumulative sum clipped to n - 1 does."""
     idx = np.empty(n_out, dtype=np.int64)
     c = w[0]
     k = 0
@@ -406,7 +413,9 @@ def kernel_mode_cluster(X, w, radius, cell):
     times to the weighted mean of the particles within ``radius`` of it (mean shift with a flat
     kernel). Returns (centre (3,), the weight within ``radius`` of it, that mask (n,) bool).
     Ties between cells go to the first in x-major order. Plain-numpy twin:
-    ``trackjam.estimation.bernoulli.mode_cluster_reference``."""
+    ``trackjam.estimation.bernoulli.mode_cluster_reference``. ``n`` >= 1: with no particle the
+    grid's box reads ``X[0]`` out of bounds (no check here; its wrapper
+    :func:`~trackjam.estimation.bernoulli.mode_moments` refuses an empty set)."""
     n = X.shape[0]
     cell, lo, dims = _mode_grid(X, cell)
     grid = np.zeros(dims[0] * dims[1] * dims[2])
