@@ -146,7 +146,7 @@ def test_interference_follows_the_served_target(antenna):
         assert P.gain[i, j, ki * C + ci, kj * C + cj] == P.targets[kj].gain[i, j, ci, cj]
 
 
-@pytest.mark.parametrize("n_agents,n_targets", [(2, 2), (2, 3), (3, 2)])
+@pytest.mark.parametrize("n_agents,n_targets", [(1, 2), (1, 3), (2, 2), (2, 3), (3, 2)])  # N = 1 too
 @pytest.mark.parametrize("objective", ["sum", "min"])
 @pytest.mark.parametrize("constraints", [True, False])
 def test_exact_equals_full_enumeration(antenna, n_agents, n_targets, objective, constraints):

@@ -80,3 +80,18 @@ def test_both_sampling_loops_follow_the_numpy_reference(antenna, at_least):
     rng = np.random.default_rng(at_least)
     P = random_assignment(rng, antenna, 5, 2, at_least, True, "sum", small_displacements(), spread=6.0)
     assert_search_follows_its_twin(P, (0, 4), 60, 4)
+
+
+@pytest.mark.parametrize("objective", ["sum", "min"])
+def test_one_agent_follows_its_twin_and_reaches_the_enumerated_optimum(antenna, objective):
+    """N = 1 (the tests above take two agents or more): the compiled search equals its numpy
+    twin draw for draw, and finds the optimum of the full enumeration over (move, level, target)."""
+    from test_assignment import enumerate_assignment
+
+    rng = np.random.default_rng(17)
+    for trial in range(3):
+        P = random_assignment(rng, antenna, 1, 1 + trial, 1, True, objective, spread=4.0)
+        assert_search_follows_its_twin(P, [0], 50, 4)
+        value = enumerate_assignment(P)[0]
+        sol = solve_assignment_grasp(P, [np.random.default_rng([trial, 0])], 1000, 5, 4)
+        assert sol.objective == value and sol.feasible

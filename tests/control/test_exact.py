@@ -19,7 +19,7 @@ def slots(P, sol):
     return np.array([int(np.flatnonzero(P.move[i] == sol.move[i])[0]) for i in range(P.n_agents)])
 
 
-@pytest.mark.parametrize("n_agents", [2, 3])
+@pytest.mark.parametrize("n_agents", [1, 2, 3])  # N = 1: one agent, no Eq. (13) partner
 @pytest.mark.parametrize("constraints", [True, False])
 def test_exact_equals_full_enumeration(antenna, n_agents, constraints):
     rng = np.random.default_rng(10 * n_agents + constraints)

@@ -34,3 +34,32 @@ def test_agents_facing_each_other_both_back_off(antenna):
     u = np.array([[50.0, 50, 50], [50, 50, 60]])
     aims = np.array([[50.0, 50, 80], [50, 50, 20]])
     assert list(fallback_levels(u, aims, antenna, True)) == [1, 1]
+
+
+def test_ties_between_permutations_go_to_the_lexicographically_largest(antenna):
+    """Three agents on an equilateral triangle (side a = 20 m, in the plane), each aimed at the
+    centroid: each sits 30 deg off the others' axes, inside their 40 deg half-angle cones, at
+    gain g = (R_0 / a)^n_e from both. With delta = 1.2 g an agent stands l_max + 1e-5 W from
+    the other two but not l_max + 0.2 W, so the best total is one agent at l_max and two at the
+    lowest level on: three permutations with bit-equal totals. The rule (module docstring) takes
+    the lexicographically largest, l_max for agent 0. Guards the branch and bound's cut
+    `bound <= best`: with `<` it goes on to the equal totals after the first and keeps the last."""
+    from dataclasses import replace
+
+    a = 20.0
+    centre = np.array([50.0, 50.0, 50.0])
+    ang = np.deg2rad([90.0, 210.0, 330.0])
+    u = centre + a / np.sqrt(3) * np.c_[np.cos(ang), np.sin(ang), np.zeros(3)]
+    g = (antenna.r0 / a) ** antenna.n_e
+    ant = replace(antenna, delta_w=1.2 * g)
+    G = hover_gains(u, np.tile(centre, (3, 1)), ant)
+    off_diagonal = G[~np.eye(3, dtype=bool)]
+    np.testing.assert_allclose(off_diagonal, g, rtol=1e-12)
+    top, low = len(ant.levels_w) - 1, 1
+    lw = ant.levels_w
+    assert (lw[top] + lw[low]) * g < ant.delta_w <= (lw[top] + lw[2]) * g  # the ties the docstring says
+    for perm in ([top, low, low], [low, top, low], [low, low, top]):
+        assert np.all(G @ lw[perm] < ant.delta_w)  # each permutation is allowed
+    lv = fallback_levels(u, np.tile(centre, (3, 1)), ant, True)
+    assert np.array_equal(lv, fallback_levels_reference(u, np.tile(centre, (3, 1)), ant, True))
+    assert lv.tolist() == [top, low, low]

@@ -29,6 +29,25 @@ def test_kernel_follows_numpy_reference(antenna):
         assert_grasp_kernel_follows_its_twin(P, trial, 200, 15)
 
 
+def test_kernel_follows_numpy_reference_when_samples_tie(antenna):
+    """p_D rounded to 0 or 1/2: Xi takes a handful of values, so most joint samples tie with the
+    iteration's best. The compiled search keeps the first of equal samples (strict `>`), as the
+    twin's argmax does; a `>=` in the sampling loop keeps the last and picks another plan. Both
+    loops: the hot one (one objective sample) and the general one (two belief samples with the
+    same table, whose weighted mean 0.5 v + 0.5 v is v exactly, so the ties stay exact)."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(21)
+    for trial in range(4):
+        P = random_problem(rng, antenna, 3, 1 + trial % 2, constraints=trial % 2 == 0, spread=6.0)
+        P = replace(P, p_d=np.where(P.p_d > 0, 0.5, 0.0))
+        assert 0 < (P.p_d > 0).mean() < 1
+        assert_grasp_kernel_follows_its_twin(P, trial, 200, 5)
+        two = replace(P, samples=np.stack([P.aim, P.aim]), weights=np.array([0.5, 0.5]),
+                      p_d_samples=np.stack([P.p_d, P.p_d]))
+        assert_grasp_kernel_follows_its_twin(two, trial, 200, 5)
+
+
 def test_neighbours_are_the_nearest_other_displacements(antenna):
     P = random_problem(np.random.default_rng(0), antenna)
     neigh, n_neigh = neighbour_lists(P, 6)
@@ -125,3 +144,20 @@ def test_the_hot_sampling_loop_and_the_general_one_agree(antenna):
         (b1, c1, l1, r1), (b2, c2, l2, r2) = results
         assert b1 > -np.inf and b1 == b2 and r1 == r2
         assert np.array_equal(c1, c2) and np.array_equal(l1, l2)
+
+
+def test_one_agent_follows_its_twin_and_reaches_the_enumerated_optimum(antenna):
+    """N = 1 (the other tests take two agents or more): the compiled search equals its numpy
+    twin draw for draw, and with every one of its 28 pairs likely drawn it finds the optimum of
+    the enumeration, the first in its order among equal values."""
+    from trackjam.control.exact import enumerate_optimum
+
+    rng = np.random.default_rng(13)
+    for trial in range(4):
+        P = random_problem(rng, antenna, 1, 1, constraints=trial % 2 == 0, displacements=tiny_displacements(),
+                           spread=4.0)
+        assert_grasp_kernel_follows_its_twin(P, trial, 100, 4)
+        value, cand, level = enumerate_optimum(P)
+        assert value > 0.0  # the agent can see the aim: the optimum is not the silent start
+        g = solve_grasp(P, rngs(trial, 1), samples=500, iterations=5)
+        assert g.objective == value

@@ -147,3 +147,29 @@ def test_the_exact_solvers_starting_value_is_the_belief_mean_of_xi_or_minus_inf_
                                for m in range(n, N + 1) for on in itertools.combinations(range(N), m))
                     for s in range(S))
         assert got == pytest.approx(brute, abs=1e-12)
+
+
+def test_received_power_of_exactly_delta_jams():
+    """Eq. (13) asks for strictly less than delta: an agent receiving exactly delta is jammed.
+    Powers of two make every product and sum exact, so the received power equals delta to the
+    last bit (2^-7 + 2^-6 = 3 x 2^-7 here). Guards kernel_feasible's `r >= delta` (a `>` passed
+    every random comparison, where exact equality never occurs)."""
+    from trackjam.control.objective import kernel_feasible
+
+    N, C = 3, 2
+    gain = np.zeros((N, N, C, C))
+    gain[0, 1, 1, 0] = 2.0**-3  # receiver 0 at candidate 1 hears sender 1 at candidate 0 ...
+    gain[0, 2, 1, 1] = 2.0**-4  # ... and sender 2 at candidate 1
+    gain[1, 0, 0, 1] = 2.0**-6  # receiver 1 hears sender 0 a little
+    levels_w = np.array([0.0, 2.0**-5, 2.0**-4, 2.0**-2])
+    cand, level = np.array([1, 0, 1]), np.array([3, 2, 3])
+    delta = 3 * 2.0**-7
+    r = received_interference(gain, levels_w, cand, level)
+    assert r[0] == delta == 2.0**-3 * 2.0**-4 + 2.0**-4 * 2.0**-2  # exact, by hand
+    assert r[1] < delta and r[2] < delta
+    assert not _plain_feasible(gain, levels_w, delta, cand, level)
+    assert not kernel_feasible(gain, levels_w, delta, cand, level)
+    # one unit in the last place more tolerance, and the same plan is feasible
+    above = float(np.nextafter(delta, np.inf))
+    assert _plain_feasible(gain, levels_w, above, cand, level)
+    assert kernel_feasible(gain, levels_w, above, cand, level)

@@ -67,6 +67,46 @@ def test_update_factors_match_numpy(level_w, m):
     np.testing.assert_allclose(np.exp(log_L), L_ref, rtol=1e-10)
 
 
+def reference_log_update_factors(X, Z, u, aim, level_w, log_lc):
+    """log L_i in the log domain, for clutter rates so small that g / (lambda_c p_c) overflows:
+    logaddexp(log(1 - p_D), log p_D + logsumexp_y log g(y | x_i) - log(lambda_c p_c)), the
+    measurements GATE standard deviations or more away left out as the kernel leaves them out
+    (with lambda_c p_c ~ e^-800 even a gated-out term would outweigh a miss)."""
+    p_d = detection_probability(X[:, :3], u, aim, level_w, ANT)
+    log_g = np.full((len(Z), len(X)), -np.inf)
+    for j, y in enumerate(Z):
+        r = y - h(X, u)
+        r[:, 1:] = wrap_angle(r[:, 1:])
+        d2 = np.sum((r / SIGMA) ** 2, axis=1)
+        log_g[j] = np.where(d2 < GATE**2, -0.5 * d2 - 1.5 * math.log(2 * np.pi) - np.log(SIGMA).sum(), -np.inf)
+    with np.errstate(divide="ignore"):
+        log_detect = np.log(p_d) + np.logaddexp.reduce(log_g, axis=0) - log_lc
+        return p_d, np.logaddexp(np.log1p(-p_d), log_detect)
+
+
+@pytest.mark.parametrize("level_w", [1e-5, 0.1995, ANT.l_max])
+def test_update_factors_of_a_tiny_clutter_rate_match_the_log_domain_formula(level_w):
+    """log(lambda_c p_c) = -800 puts the kernel on its log-domain branch (c_max >= 700, where
+    exp(c_max) overflows), which the clutter rates above never reach. Guards that branch's
+    log p_D + c_max + log S: dropping log p_D (the mutation audit's M-E1) went unnoticed."""
+    rng = np.random.default_rng(3)
+    X, Z, u, aim = _case(rng, m=5)
+    log_lc = -800.0
+    assert -1.5 * math.log(2 * np.pi) - np.log(SIGMA).sum() - log_lc >= 700.0  # the log-domain branch
+    p_d, log_L = kernel_update_factors(
+        X, Z, u, axis_of(u, aim), level_w / ANT.l_max * ANT.p_d_max, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e,
+        SIGMA, log_lc,
+    )
+    p_ref, log_L_ref = reference_log_update_factors(X, Z, u, aim, level_w, log_lc)
+    np.testing.assert_allclose(p_d, p_ref, rtol=1e-12, atol=1e-15)
+    # the case holds particles that detect (0 < p_D < 1) with a measurement inside the gate, and
+    # particles whose L is the miss term alone
+    supported = np.isfinite(log_L_ref) & (log_L_ref > 1.0)
+    assert supported.sum() >= 5 and np.all((p_ref[supported] > 0) & (p_ref[supported] < 1))
+    assert np.any(~supported)
+    np.testing.assert_allclose(log_L, log_L_ref, rtol=1e-12, atol=1e-9)
+
+
 def test_azimuth_residual_is_wrapped():
     """A measurement at azimuth -pi + 0.01 and a particle at pi - 0.01 are 0.02 rad apart."""
     u = np.zeros(3)
@@ -116,6 +156,27 @@ def test_systematic_indices_match_numpy():
     u0 = 0.37
     ref = np.searchsorted(np.cumsum(w), (np.arange(200) + u0) / 200)
     np.testing.assert_array_equal(kernel_systematic_indices(w, 200, u0), np.minimum(ref, 49))
+
+
+def test_systematic_indices_of_degenerate_weights_match_numpy():
+    """One particle, all-zero weights and weights summing to less than 1: the compiled draws
+    are numpy's searchsorted of the cumulative sum clipped to the last index (the kernel's
+    docstring), and never an index past the array."""
+    for w in (np.ones(1), np.zeros(1), np.zeros(5), np.full(5, 0.1), np.r_[0.0, 0.0, 1.0]):
+        for n_out, u0 in ((1, 0.0), (7, 0.37), (20, 0.999)):
+            ref = np.minimum(np.searchsorted(np.cumsum(w), (np.arange(n_out) + u0) / n_out), len(w) - 1)
+            np.testing.assert_array_equal(kernel_systematic_indices(w, n_out, u0), ref)
+
+
+def test_no_configuration_gives_the_resampler_an_empty_set():
+    """kernel_systematic_indices reads w[0] unchecked: its callers rely on every filter holding
+    at least one particle, which the configuration's bounds guarantee."""
+    from trackjam.errors import ConfigError
+
+    for field, least in (("filter.particles", 10), ("filter.birth_particles", 1)):
+        with pytest.raises(ConfigError, match=field):
+            load_scenario("paper-fig3", [f"{field}={least - 1}"])
+        assert getattr(load_scenario("paper-fig3", [f"{field}={least}"]).filter, field.split(".")[1]) == least
 
 
 def test_systematic_resampling_keeps_expected_counts():

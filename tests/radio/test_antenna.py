@@ -126,3 +126,48 @@ def test_the_cones_farthest_point_and_so_the_clutters_range_is_the_rim_by_hand()
     rim = np.array([math.sin(ANT.half_angle), 0.0, math.cos(ANT.half_angle)]) * ANT.max_range * (1 - 1e-9)
     assert inside_cone(rim, np.zeros(3), np.array([0.0, 0.0, 1.0]), ANT.height, ANT.half_angle)
     assert not inside_cone(rim * 1.001, np.zeros(3), np.array([0.0, 0.0, 1.0]), ANT.height, ANT.half_angle)
+
+
+@pytest.mark.parametrize("rel", [-1e-2, -5e-3, -1e-6, 1e-6, 5e-3, 1e-2])
+def test_compiled_kernel_matches_numpy_across_the_cones_side(rel):
+    """The random comparison above almost never lands near the cone's side, so a kernel with a
+    cone 1 % wider passed it. Here, along random axes, points at (1 + rel) times the side's
+    radius s tan(theta_a / 2), for s from near the apex to s = h_a: inside (gain > 0) below the
+    side and outside (gain 0) above it, in both versions alike."""
+    rng = np.random.default_rng(int(abs(rel) * 1e6) + (rel > 0))
+    for s in np.r_[ANT.r0 * np.cos(ANT.half_angle), rng.uniform(1.0, ANT.height, 20), ANT.height]:
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        side = np.cross(axis, rng.normal(size=3))
+        side /= np.linalg.norm(side)
+        u = rng.uniform(-10, 10, 3)
+        p = u + s * axis + (1 + rel) * s * ANT.tan_half * side
+        ref = float(cone_gain(p, u, u + 10 * axis, ANT))
+        got = kernel_cone_gain(*p, *u, *axis, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e)
+        assert got == pytest.approx(ref, abs=1e-12)
+        assert (got > 0) == (rel < 0)
+
+
+@pytest.mark.parametrize("rel", [-1e-6, 1e-6])
+def test_compiled_kernel_matches_numpy_at_the_base_and_at_r0(rel):
+    """Just inside and just outside the base (s = h_a, on the axis and at half the base's
+    radius), and on either side of eta = R_0 where g(eta) leaves 1."""
+    rng = np.random.default_rng(7)
+    for _ in range(10):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        side = np.cross(axis, rng.normal(size=3))
+        side /= np.linalg.norm(side)
+        u = rng.uniform(-10, 10, 3)
+        base = [u + (1 + rel) * ANT.height * axis,
+                u + (1 + rel) * ANT.height * axis + 0.5 * ANT.height * ANT.tan_half * side]
+        at_r0 = [u + (1 + rel) * ANT.r0 * axis, u + (1 + rel) * ANT.r0 * (0.8 * axis + 0.6 * side)]
+        for p in base + at_r0:
+            ref = float(cone_gain(p, u, u + 10 * axis, ANT))
+            got = kernel_cone_gain(*p, *u, *axis, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e)
+            assert got == pytest.approx(ref, abs=1e-12)
+        for p in base:
+            assert (kernel_cone_gain(*p, *u, *axis, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e) > 0) == (rel < 0)
+        for p in at_r0:  # 0.6 / 0.8 = tan(36.9 deg) < tan(40 deg): both inside the cone
+            g = kernel_cone_gain(*p, *u, *axis, ANT.height, ANT.tan_half, ANT.r0, ANT.n_e)
+            assert (g == 1.0) if rel < 0 else (0 < g < 1.0)
