@@ -193,8 +193,10 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
             aspectmode="manual",
             aspectratio=dict(x=float(ratio[0]), y=float(ratio[1]), z=float(ratio[2])),
             camera=dict(eye=dict(x=1.5, y=-1.5, z=0.9)),
+            domain=dict(x=[0.0, 1.0], y=[0.12, 1.0]),  # the slider keeps the bottom: its labels had sat on the axes'
         ),
         uirevision="replay",
+        modebar=dict(orientation="v"),  # on the right edge, off the long title
         legend=dict(x=0.0, y=0.98, bgcolor="rgba(255,255,255,0.7)"),
         margin=dict(l=0, r=0, t=50, b=0),
         updatemenus=[dict(
@@ -214,7 +216,7 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
                   + f", solver {fs.solver}; "
                   f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
                   f"delta = {fs.interference_limit_db:g} dBW"),
-            x=0.99, y=0.99, xref="paper", yref="paper", xanchor="right", showarrow=False,
+            x=0.97, y=0.99, xref="paper", yref="paper", xanchor="right", showarrow=False,
             font=dict(size=11, color="#555"),
         )],
     )
