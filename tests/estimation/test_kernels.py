@@ -14,6 +14,7 @@ from trackjam.estimation.kernels import (
     kernel_gaussian_sample,
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
+    kernel_masked_moments,
     kernel_reachable,
     kernel_systematic_indices,
     kernel_two_scan_velocity,
@@ -199,6 +200,43 @@ def test_weighted_moments_and_logsumexp_match_numpy():
     a = rng.normal(0, 300, 100)
     assert kernel_logsumexp(a) == pytest.approx(np.logaddexp.reduce(a), rel=1e-12)
     assert kernel_logsumexp(np.full(3, -np.inf)) == -np.inf
+
+
+def reference_moments_in_order(X, w, inside=None, mass=None):
+    """Weighted mean and covariance summed particle by particle in plain numpy, in the order
+    the kernels promise (mean: w_i x_i added in turn, then / mass when masked; covariance: per
+    particle the outer product of ``w_i (x_i - mean)`` and ``x_i - mean`` added in turn)."""
+    rows = range(len(X)) if inside is None else np.flatnonzero(inside)
+    mean = np.zeros(6)
+    for i in rows:
+        mean += w[i] * X[i]
+    if inside is not None:
+        mean /= mass
+    acc = np.zeros((6, 6))
+    for i in rows:
+        wi = w[i] if inside is None else w[i] / mass
+        diff = X[i] - mean
+        acc += np.outer(wi * diff, diff)
+    return mean, 0.5 * (acc + acc.T)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e6])
+def test_moments_kernels_match_the_in_order_sums_to_the_bit(scale):
+    """kernel_weighted_moments and kernel_masked_moments keep their sums in registers, a few
+    rows of the covariance per pass: each entry must still be the same sum in the same order."""
+    rng = np.random.default_rng(7)
+    X = rng.normal(0, scale, (257, 6)) + rng.normal(0, 50, 6)
+    w = rng.random(257) ** 5
+    w[rng.random(257) < 0.2] = 0.0
+    w /= w.sum()
+    for got, ref in zip(kernel_weighted_moments(X, w), reference_moments_in_order(X, w)):
+        assert np.array_equal(got, ref)
+    inside = rng.random(257) < 0.4
+    mass = w[inside].sum()
+    for got, ref in zip(kernel_masked_moments(X, w, inside, mass), reference_moments_in_order(X, w, inside, mass)):
+        assert np.array_equal(got, ref)
+    empty = kernel_weighted_moments(np.empty((0, 6)), np.empty(0))
+    assert np.array_equal(empty[0], np.zeros(6)) and np.array_equal(empty[1], np.zeros((6, 6)))
 
 
 def test_gaussian_mixture_matches_scipy():

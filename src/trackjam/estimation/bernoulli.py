@@ -591,7 +591,8 @@ class BernoulliFilter:
         log_L = scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
         for other in others:  # teammates' scans, independent of this one given the target
             log_L = log_L + other.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
-        log_V = float(kernel_logsumexp(log_w + log_L))
+        log_wL = log_w + log_L
+        log_V = float(kernel_logsumexp(log_wL))
         self.log_evidence = log_V
         log_Lm = log_L
         nu_post = None
@@ -601,8 +602,11 @@ class BernoulliFilter:
         elif self.visibility is not None:
             log_Lm = mix_visibility(log_L, self.nu_pred)
             self.nu = posterior_visibility(self.nu_pred, log_V)
-        log_joint = log_w + log_Lm
-        log_A = float(kernel_logsumexp(log_joint))
+        if log_Lm is log_L:  # no hidden-target mode: the joint and its sum are the evidence's
+            log_joint, log_A = log_wL, log_V
+        else:
+            log_joint = log_w + log_Lm
+            log_A = float(kernel_logsumexp(log_joint))
         e = posterior_existence(e_pred, log_A)
         log_post = log_w if log_A == -np.inf else log_joint - log_A
         w = np.exp(log_post)
@@ -772,6 +776,10 @@ class BernoulliFilter:
             return nu
         nu_y = self._chain(self._young.nu) if predicted else self._young.nu
         return np.concatenate([nu, nu_y])
+
+    def survivors(self) -> tuple[np.ndarray, np.ndarray]:
+        """:attr:`particles` and :attr:`log_w` together, built once (each property builds both)."""
+        return self._survivors()
 
     @property
     def particles(self) -> np.ndarray:

@@ -130,30 +130,76 @@ def kernel_logsumexp(a):
 
 
 @njit(cache=True, inline="always")
-def _add_outer(X, i, wi, mean, diff, acc):
-    """acc (36,) += wi (X[i] - mean)(X[i] - mean)^T, flattened; ``diff`` (6,) is scratch."""
-    for a in range(6):
-        diff[a] = X[i, a] - mean[a]
-    for a in range(6):
-        wa = wi * diff[a]
-        for b in range(6):
-            acc[a * 6 + b] += wa * diff[b]
+def _covariance_rows(X, w, inside, mass, mean, a, cov):
+    """Rows ``a`` and ``a + 1`` of the weighted second central moment of ``X`` (n, 6) into ``cov``:
+    ``cov[r, b] = sum_i (w_i / mass) (X[i, r] - mean[r]) (X[i, b] - mean[b])`` over the rows
+    where ``inside`` (every row, and weights ``w_i`` undivided, when ``inside`` has length 0),
+    summed in particle order.
+
+    Each entry gets the same terms in the same order as the one-pass loop it replaces (``acc``
+    of 36 entries in memory, per particle ``wa = w_i diff_a`` then ``acc[a, b] += wa diff_b``),
+    so the result is the same to the bit; the twelve sums are held in registers, which made
+    the moments of 12k particles 1.5x faster."""
+    m0, m1, m2, m3, m4, m5 = mean[0], mean[1], mean[2], mean[3], mean[4], mean[5]
+    ma, mb = mean[a], mean[a + 1]
+    masked = inside.shape[0] > 0
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    t0 = t1 = t2 = t3 = t4 = t5 = 0.0
+    for i in range(X.shape[0]):
+        if masked and not inside[i]:
+            continue
+        wi = w[i] / mass if masked else w[i]
+        d0, d1, d2 = X[i, 0] - m0, X[i, 1] - m1, X[i, 2] - m2
+        d3, d4, d5 = X[i, 3] - m3, X[i, 4] - m4, X[i, 5] - m5
+        wa = wi * (X[i, a] - ma)
+        wb = wi * (X[i, a + 1] - mb)
+        s0 += wa * d0
+        s1 += wa * d1
+        s2 += wa * d2
+        s3 += wa * d3
+        s4 += wa * d4
+        s5 += wa * d5
+        t0 += wb * d0
+        t1 += wb * d1
+        t2 += wb * d2
+        t3 += wb * d3
+        t4 += wb * d4
+        t5 += wb * d5
+    cov[a, 0], cov[a, 1], cov[a, 2], cov[a, 3], cov[a, 4], cov[a, 5] = s0, s1, s2, s3, s4, s5
+    cov[a + 1, 0], cov[a + 1, 1], cov[a + 1, 2], cov[a + 1, 3], cov[a + 1, 4], cov[a + 1, 5] = t0, t1, t2, t3, t4, t5
+
+
+@njit(cache=True)
+def _moments(X, w, inside, mass):
+    """Mean (6,) and symmetrised covariance (6, 6) of the rows of ``X`` (n, 6) where ``inside``
+    with weights ``w / mass``, or of every row with weights ``w`` when ``inside`` has length 0:
+    the mean is ``sum_i w_i X_i`` over those rows, then divided by ``mass`` when masked; the
+    covariance three passes of :func:`_covariance_rows`."""
+    masked = inside.shape[0] > 0
+    m0 = m1 = m2 = m3 = m4 = m5 = 0.0
+    for i in range(X.shape[0]):
+        if masked and not inside[i]:
+            continue
+        wi = w[i]
+        m0 += wi * X[i, 0]
+        m1 += wi * X[i, 1]
+        m2 += wi * X[i, 2]
+        m3 += wi * X[i, 3]
+        m4 += wi * X[i, 4]
+        m5 += wi * X[i, 5]
+    mean = np.array([m0, m1, m2, m3, m4, m5])
+    if masked:
+        mean /= mass
+    cov = np.empty((6, 6))
+    for a in range(0, 6, 2):
+        _covariance_rows(X, w, inside, mass, mean, a, cov)
+    return mean, 0.5 * (cov + cov.T)
 
 
 @njit(cache=True)
 def kernel_weighted_moments(X, w):
     """Mean (6,) and covariance (6, 6) of particles ``X`` (n, 6) with normalised weights ``w``."""
-    n = X.shape[0]
-    mean = np.zeros(6)
-    for i in range(n):
-        for a in range(6):
-            mean[a] += w[i] * X[i, a]
-    acc = np.zeros(36)
-    diff = np.empty(6)
-    for i in range(n):
-        _add_outer(X, i, w[i], mean, diff, acc)
-    cov = acc.reshape((6, 6))
-    return mean, 0.5 * (cov + cov.T)
+    return _moments(X, w, np.empty(0, dtype=np.bool_), 1.0)
 
 
 @njit(cache=True)
@@ -480,17 +526,4 @@ def kernel_masked_moments(X, w, inside, mass):
     """Mean (6,) and covariance (6, 6) of the particles ``X`` (n, 6) where ``inside``, with weights
     ``w / mass`` (``mass``: their weights' sum); :func:`kernel_weighted_moments` of that subset
     without copying it."""
-    n = X.shape[0]
-    mean = np.zeros(6)
-    for i in range(n):
-        if inside[i]:
-            for a in range(6):
-                mean[a] += w[i] * X[i, a]
-    mean /= mass
-    acc = np.zeros(36)
-    diff = np.empty(6)
-    for i in range(n):
-        if inside[i]:
-            _add_outer(X, i, w[i] / mass, mean, diff, acc)
-    cov = acc.reshape((6, 6))
-    return mean, 0.5 * (cov + cov.T)
+    return _moments(X, w, inside, mass)

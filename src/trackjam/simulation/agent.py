@@ -109,11 +109,12 @@ class Agent:
         belief = None
         if belief_samples:
             f = self.filter
-            w = np.exp(f.log_w - f.log_w.max())
+            X, log_w = f.survivors()  # once: each of f.particles and f.log_w builds both
+            w = np.exp(log_w - log_w.max())
             nu = f.visible  # filter.visibility.per_particle: where the target is and can be seen
             if nu is not None and w @ nu > 0.0:
                 w = w * nu
-            belief = belief_sample(f.particles, w, belief_samples)
+            belief = belief_sample(X, w, belief_samples)
         return Message(self.index, "prediction", t, position=self.position.copy(), estimate=estimate,
                        aim=self.aim.copy(), coasted=None if coasted is None else coasted[0], belief=belief)
 
