@@ -81,6 +81,22 @@ def test_the_compiled_mean_is_the_numpy_mean_bit_for_bit():
             assert kernel_mean_xi(p, w, n, np.empty(n + 1)) == float(mean_at_least(p, w, n))
 
 
+def test_the_mean_over_samples_is_the_per_sample_sum_bit_for_bit():
+    """mean_at_least's one programme over all samples is the sample-by-sample sum it replaced,
+    for plans (S, N) and for batches of plans (S, M, N), n = 0 and n > N included."""
+    rng = np.random.default_rng(3)
+    for S in (1, 5, 48):
+        w = rng.uniform(0, 1, S)
+        w /= w.sum()
+        for shape in ((S, 3), (S, 7, 3)):
+            p = rng.uniform(0, 1, shape)
+            for n in (0, 1, 2, 3, 4):
+                acc = 0.0
+                for s in range(S):
+                    acc = acc + w[s] * at_least_probability(p[s], n)
+                assert np.array_equal(mean_at_least(p, w, n), np.asarray(acc))
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(2, 3), st.integers(1, 3), st.booleans(), st.integers(2, 6))
 def test_exact_is_the_optimum_of_the_averaged_objective(antenna, seed, n_agents, at_least, constraints, S):

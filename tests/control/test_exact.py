@@ -166,3 +166,47 @@ def test_xi_is_linear_in_one_agents_p_d_with_the_kernels_coefficients():
             x = rng.uniform()
             full = at_least_probability(np.insert(others, d, x), n)
             assert AB[d, s, 0] + AB[d, s, 1] * x == pytest.approx(full, abs=1e-14)
+
+
+def test_ranked_tables_kernel_is_its_numpy_twin_bit_for_bit(antenna):
+    """kernel_ranked_tables (p_D by rank, zero past the real pairs, and its suffix maximum)
+    equals ranked_tables_reference, on point and belief problems with padded candidates."""
+    from trackjam.control.exact import kernel_ranked_tables, pair_order, ranked_tables_reference
+    from trackjam.control.problem import build_problem
+
+    from control_instances import HIGH, LOW, small_displacements
+
+    rng = np.random.default_rng(21)
+    for trial in range(6):
+        x = rng.uniform(5, 95, 3)
+        u = np.clip(x + rng.normal(0, 8, (3, 3)), 0, 100)
+        u[0, 2] = 0.0  # on the floor: fewer candidates, padded pairs
+        xs = x + rng.normal(0, 6, (1 + 8 * (trial % 2), 3))
+        P = build_problem(u, x, small_displacements(), antenna, LOW, HIGH, 2, True, xs if trial > 1 else None)
+        L = P.n_levels
+        order, n_pairs = pair_order(P)
+        valid = order >= 0
+        rank_c, rank_l = np.where(valid, order // L, 0), np.where(valid, order % L, 0)
+        p_s = np.ascontiguousarray(P.objective_tables()[0])
+        ps, smax = kernel_ranked_tables(p_s, rank_c, rank_l, n_pairs)
+        ps_ref, smax_ref = ranked_tables_reference(p_s, rank_c, rank_l, n_pairs)
+        assert np.count_nonzero(~valid) > 0
+        assert np.array_equal(ps, ps_ref) and np.array_equal(smax, smax_ref)
+
+
+def test_pair_order_is_each_agents_own_sort(antenna):
+    """pair_order's one sort gives every agent the ranks a sort of its own pairs gives (p_D
+    descending, then level, then move), ties included (off levels all have p_D 0)."""
+    from trackjam.control.exact import pair_order
+
+    rng = np.random.default_rng(22)
+    for _ in range(5):
+        P = random_problem(rng, antenna, 3, 2, True, spread=20.0)
+        order, n_pairs = pair_order(P)
+        L = P.n_levels
+        for i in range(P.n_agents):
+            n = int(P.n_cand[i])
+            c, l = np.divmod(np.arange(n * L), L)
+            rank = np.lexsort((c, l, -P.p_d[i, c, l]))
+            assert np.array_equal(order[i, : n * L], c[rank] * L + l[rank])
+            assert np.all(order[i, n * L:] == -1) and n_pairs[i] == n * L

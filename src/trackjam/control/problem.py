@@ -20,7 +20,8 @@ candidate and level with its cone still aimed at x_bar; Eq. (13) is unchanged (c
 x_bar). ``p_d_samples[s, i, c, l]`` tabulates it; without samples (the paper's point objective)
 it is None and every solver reads ``p_d`` as the one sample x_bar with weight 1.
 ``kernel_gain_table`` is the compiled builder of ``gain``; ``gain_table_reference`` is its
-numpy twin, held to it by the tests.
+numpy twin, held to it by the tests. ``cone_gain_at`` computes the cone gains behind ``p_d`` and
+``p_d_samples`` (compiled geometry, numpy's path gain), bit for bit numpy's ``cone_gain``.
 """
 
 from __future__ import annotations
@@ -31,8 +32,8 @@ import numpy as np
 from numba import njit
 
 from trackjam.arguments import corners, points, whole
-from trackjam.radio.antenna import AntennaModel, axis_of, cone_gain, kernel_cone_gain
-from trackjam.world.moves import admissible_moves, in_area
+from trackjam.radio.antenna import AntennaModel, axis_of, cone_gain, kernel_cone_gain, path_gain
+from trackjam.world.moves import in_area
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,48 @@ def kernel_gain_table(cand_pos, cand_axis, n_cand, height, tan_half, r0, n_e):
     return gain
 
 
+@njit(cache=True)
+def kernel_cone_geometry(points, apex, axis, height, tan_half):
+    """For every point ``points[s]`` (S, 3) and apex ``apex[i, c]`` (N, C, 3) with unit axis
+    ``axis[i, c]``: ``eta[s, i, c]`` = |x_s - u| and ``inside[s, i, c]``, whether x_s lies in
+    the cone (:func:`~trackjam.radio.antenna.inside_cone`'s test).
+
+    The operations of ``cone_gain``'s numpy (its sums over the 3 coordinates run left to right,
+    as numpy's), so with the path gain applied in numpy, :func:`cone_gain_at` is ``cone_gain``
+    bit for bit in a single pass (a belief of 48 samples: 0.1 instead of 1.5 ms)."""
+    S, N, C = points.shape[0], apex.shape[0], apex.shape[1]
+    eta = np.empty((S, N, C))
+    inside = np.empty((S, N, C), dtype=np.bool_)
+    tol = 1e-9
+    for s in range(S):
+        px, py, pz = points[s, 0], points[s, 1], points[s, 2]
+        for i in range(N):
+            for c in range(C):
+                dx = px - apex[i, c, 0]
+                dy = py - apex[i, c, 1]
+                dz = pz - apex[i, c, 2]
+                ax, ay, az = axis[i, c, 0], axis[i, c, 1], axis[i, c, 2]
+                eta[s, i, c] = np.sqrt(dx * dx + dy * dy + dz * dz)
+                along = dx * ax + dy * ay + dz * az
+                rx = dx - along * ax
+                ry = dy - along * ay
+                rz = dz - along * az
+                radial = np.sqrt(rx * rx + ry * ry + rz * rz)
+                inside[s, i, c] = (along >= -tol) & (along <= height + tol) & (radial <= along * tan_half + tol)
+    return eta, inside
+
+
+def cone_gain_at(points, apex, axis, antenna: AntennaModel) -> np.ndarray:
+    """``cone_gain(points[s], apex[i, c], aim, antenna)`` as (S, N, C), with ``axis`` the unit
+    axis of each apex toward its aim (``axis_of(apex, aim)``): eta and the cone test compiled
+    (:func:`kernel_cone_geometry`), the path gain by numpy's :func:`path_gain` over the whole
+    block, elementwise as ``cone_gain`` applies it."""
+    eta, inside = kernel_cone_geometry(np.ascontiguousarray(points, dtype=np.float64),
+                                       np.ascontiguousarray(apex), np.ascontiguousarray(axis),
+                                       float(antenna.height), antenna.tan_half)
+    return np.where(inside, path_gain(eta, antenna.r0, antenna.n_e), 0.0)
+
+
 def gain_table_reference(cand_pos, n_cand, aim, antenna: AntennaModel) -> np.ndarray:
     """Plain-numpy twin of :func:`kernel_gain_table`, by broadcasting :func:`cone_gain`."""
     N, C = cand_pos.shape[:2]
@@ -199,7 +242,7 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
         raise ValueError(f"positions: every agent must lie inside the area {lo.tolist()} to {hi.tolist()}")
     if len(D) == 0 or np.any(D[0] != 0.0):
         raise ValueError("displacements: control 0 of the displacement set must be hover (0, 0, 0)")
-    ok = np.stack([admissible_moves(u[i], D, low, high) for i in range(N)])  # (N, K)
+    ok = in_area(u[:, None, :] + D[None], low, high)  # (N, K): admissible_moves of every agent at once
     n_cand = ok.sum(axis=1).astype(np.int64)
     C = int(n_cand.max())
     move = np.full((N, C), -1, dtype=np.int64)
@@ -208,9 +251,9 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
     cand_pos = u[:, None, :] + D[np.maximum(move, 0)]
     valid = move >= 0
     levels_w = np.asarray(antenna.levels_w, dtype=np.float64)
-    g_target = cone_gain(x_bar, cand_pos, np.broadcast_to(x_bar, cand_pos.shape), antenna)
-    p_d = (levels_w / antenna.l_max * antenna.p_d_max)[None, None, :] * (g_target * valid)[:, :, None]
     cand_axis = np.ascontiguousarray(axis_of(cand_pos, np.broadcast_to(x_bar, cand_pos.shape)))
+    g_target = cone_gain_at(x_bar[None], cand_pos, cand_axis, antenna)[0]  # cone_gain(x_bar, cand_pos, x_bar)
+    p_d = (levels_w / antenna.l_max * antenna.p_d_max)[None, None, :] * (g_target * valid)[:, :, None]
     gain = kernel_gain_table(
         np.ascontiguousarray(cand_pos), cand_axis, n_cand,
         float(antenna.height), antenna.tan_half, float(antenna.r0), float(antenna.n_e),
@@ -218,8 +261,7 @@ def build_problem(positions, aim, displacements, antenna: AntennaModel, low, hig
     belief = {}
     if samples is not None:
         x_s, w = belief_weights(samples, weights)
-        aims = np.broadcast_to(x_bar, cand_pos.shape)[None]
-        g_s = cone_gain(x_s[:, None, None, :], cand_pos[None], aims, antenna) * valid  # (S, N, C)
+        g_s = cone_gain_at(x_s, cand_pos, cand_axis, antenna) * valid  # (S, N, C), cones aimed at x_bar
         scale = levels_w / antenna.l_max * antenna.p_d_max
         belief = dict(samples=x_s, weights=w,
                       p_d_samples=np.ascontiguousarray(scale[None, None, None, :] * g_s[..., None]))

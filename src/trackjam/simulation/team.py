@@ -169,8 +169,7 @@ class Team:
         if told is not None:
             x_bars = {j: np.array(told, dtype=float) for j in working}
         else:
-            x_bars = {j: pursuit_aim([m.estimate for m in self.fresh(j)], np.array([m.position for m in self.fresh(j)]),
-                                     self.settings.aim, low, high) for j in working}
+            x_bars = self._planning_aims(working, low, high)
         decisions: list[Decision | None] = [None] * len(self.agents)
         for j in range(len(self.agents)):
             if j not in working:
@@ -193,6 +192,21 @@ class Team:
             decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)),
                                     best.optimal, best.gap, best.closed_in)
         return decisions, time.perf_counter() - t0
+
+    def _planning_aims(self, working, low: np.ndarray, high: np.ndarray) -> dict[int, np.ndarray | None]:
+        """Each working agent's x_bar (:func:`pursuit_aim` of the predictions it received this
+        step), computed once per distinct inbox: agents that received the same messages (every
+        agent, when none is lost) get the same aim, each its own copy."""
+        aims: dict[tuple[int, ...], np.ndarray | None] = {}
+        out = {}
+        for j in working:
+            heard = self.fresh(j)
+            key = tuple(id(m) for m in heard)  # the same message objects, in the same order
+            if key not in aims:
+                aims[key] = pursuit_aim([m.estimate for m in heard], np.array([m.position for m in heard]),
+                                        self.settings.aim, low, high)
+            out[j] = None if aims[key] is None else aims[key].copy()
+        return out
 
     def _proposals(self, working, x_bars, displacements, ant, low, high, plan: PlanSettings,
                    t0: float, told: bool = False) -> list[Proposal]:
