@@ -13,6 +13,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from readme_tables import README, SEVERAL_TARGETS, closing_table_rows
 from typer.testing import CliRunner
 
@@ -34,9 +36,19 @@ def _run(code: str, cwd: Path) -> str:
 
 
 def test_the_readme_has_the_python_blocks_these_tests_run():
-    # five blocks: the API, step by step, the environment, the comparison by seed, an experiment
-    # of one's own; a new block must be added to a test below
-    assert len(BLOCKS) == 5
+    # six blocks: the API, step by step, reading a run's files, the environment, the comparison
+    # by seed, an experiment of one's own; a new block must be added to a test below
+    assert len(BLOCKS) == 6
+
+
+def test_the_block_that_reads_a_runs_files_runs_as_written_and_agrees_with_the_summary(tmp_path):
+    import json
+
+    out = _run(_block("pq.read_table(\"runs/read-me/steps.parquet\")"), tmp_path)
+    held = float(re.search(r"held share: ([\d.]+)", out).group(1))
+    reported = int(re.search(r"steps reported: (\d+)", out).group(1))
+    summary = json.loads((tmp_path / "runs" / "read-me" / "summary.json").read_text())
+    assert held == pytest.approx(summary["held_share"]) and reported == summary["confirmed_steps"]
 
 
 def test_the_python_api_blocks_run_as_written(tmp_path):

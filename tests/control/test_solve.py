@@ -85,6 +85,23 @@ def test_a_registered_function_is_a_solver(fig3_problem):
         del SOLVERS["all-off-test"]
 
 
+def test_a_scenario_naming_a_script_registered_solver_is_told_where_such_a_solver_runs():
+    # it had been pydantic's bare "Input should be 'greedy', 'grasp' or 'exact'"
+    from trackjam.control.solve import SOLVERS, register
+    from trackjam.errors import ConfigError
+
+    register("cautious-test")(lambda problem, rngs, options: None)
+    try:
+        with pytest.raises(ConfigError, match=r"'cautious-test' is a solver registered from a script: solve\(\), "
+                                              r"solver_policy\(\) and Planned take it"):
+            load_scenario("paper-fig3", ["control.solver=cautious-test"])
+    finally:
+        del SOLVERS["cautious-test"]
+    with pytest.raises(ConfigError) as err:  # a name nobody registered gets no such hint
+        load_scenario("paper-fig3", ["control.solver=cautious-test"])
+    assert "registered" not in str(err.value)
+
+
 @pytest.mark.parametrize("name, fn, error, words", [
     (["a"], lambda p, r, o: None, ValueError, "register: a solver's name must be a non-empty text"),
     ("", lambda p, r, o: None, ValueError, "register: a solver's name must be a non-empty text"),

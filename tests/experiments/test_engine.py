@@ -187,7 +187,7 @@ def test_plain_progress_prints_one_line_per_trial_with_running_means(tmp_path, c
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 4
     assert lines[0].startswith("[1/4] config 1 (constraints on) trial 0: incidents")
-    assert "running means:" in lines[-1]
+    assert "running means over all configurations:" in lines[-1]
 
 
 def test_plain_progress_says_a_slow_sweep_is_still_at_work(tmp_path, capsys, monkeypatch):

@@ -123,7 +123,7 @@ def test_a_new_experiment_shows_its_own_metrics_in_the_plain_progress(tmp_path, 
     run_experiment(HOLDING.name, workers=1, out=tmp_path, **{**SWEEP, "trial": holding_trial, "progress": "lines"})
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 4 and lines[0].startswith("[1/4] config 1 (grasp) trial 0: held ")
-    assert ", false_track " in lines[0] and "running means: held " in lines[-1]
+    assert ", false_track " in lines[0] and "running means over all configurations: held " in lines[-1]
     assert [key for _, key, _ in HOLDING.shown] == ["held_share", "false_share", "missed_share"]
 
 

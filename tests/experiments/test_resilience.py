@@ -571,11 +571,27 @@ def test_a_worker_killed_from_outside_is_one_line_and_a_rerun_resumes(tmp_path, 
     out = tmp_path / "sweep"
     monkeypatch.setenv("TRACKJAM_KILL_TRIAL", "1")
     with pytest.raises(OutputError, match=r"^a worker process of the pool ended abruptly \(killed from outside, "
-                       r"perhaps by the system for lack of memory\); the trials written are intact: run the same "
-                       r"command again to resume"):
+                       r"perhaps by the system for lack of memory, or failing as it started: see above\); the trials "
+                       r"written are intact: run the same command again to resume"):
         run_experiment("constraints", workers=2, out=out, **{**SWEEP, "trials": 3, "trial": killed_trial})
     written = sorted(p.name for p in (out / "trials").glob("c*.parquet"))
     assert "c02-t0001.parquet" not in written
     monkeypatch.delenv("TRACKJAM_KILL_TRIAL")
     r = run_experiment("constraints", workers=1, out=out, **SWEEP | {"trials": 3, "trial": killed_trial})  # resumes
     assert len(list((out / "trials").glob("c*.parquet"))) == 6 and r is not None
+
+
+def test_a_script_without_a_main_guard_is_told_to_add_one(tmp_path):
+    """Each spawned worker imports the parent's script again: without `if __name__ ==
+    "__main__":` every worker started a sweep of its own and failed on the parent's lock ("another
+    sweep is writing there"), and the parent blamed a worker "killed from outside"."""
+    script = tmp_path / "noguard.py"
+    script.write_text(
+        "from sweep_helpers import SWEEP\n"
+        "from trackjam.experiments.engine import run_experiment\n"
+        f"run_experiment('constraints', workers=2, out={str(tmp_path / 'out')!r}, **SWEEP)\n"
+    )
+    r = subprocess.run([sys.executable, str(script)], env=ENV, capture_output=True, text=True, timeout=300)
+    assert r.returncode != 0
+    assert "put the call under `if __name__ == \"__main__\":`" in r.stderr
+    assert "another sweep is writing there" not in r.stderr

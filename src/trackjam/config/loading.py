@@ -272,8 +272,20 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
             key = ".".join(str(p) for p in loc)
             msg += (f" (read as {kind}; a text needs quotes: {key}: \"...\" in a file, --set '{key}=\"...\"' "
                     "on the command line)" if kind != "null" else " (read as null: no value was given)")
+        if loc == ("control", "solver") and e["type"] == "literal_error" and _registered(e["input"]):
+            msg += (f" ({e['input']!r} is a solver registered from a script: solve(), solver_policy() and "
+                    "Planned take it; a scenario takes a solver named in config/model.py's Control.solver)")
         out.append((".".join(str(p) for p in loc), " ".join(msg.split())))
     return [(key, _length_message(msg, lengths[msg], inputs[msg]) if isinstance(msg, tuple) else msg) for key, msg in out]
+
+
+def _registered(name: Any) -> bool:
+    """Whether ``name`` is a solver registered from a script (``control.solve.register``), read
+    from the registry only when it is loaded: validating a scenario imports no solver."""
+    import sys
+
+    solve = sys.modules.get("trackjam.control.solve")
+    return isinstance(name, str) and solve is not None and name in getattr(solve, "SOLVERS", {})
 
 
 def _yaml_kind(value: Any) -> str | None:

@@ -148,8 +148,9 @@ def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[
             # 86-line traceback, exit status 1
             pool.terminate()
             raise OutputError("a worker process of the pool ended abruptly (killed from outside, perhaps by the system "
-                              "for lack of memory); the trials written are intact: run the same command again to "
-                              "resume, with fewer --workers if memory is short") from None
+                              "for lack of memory, or failing as it started: see above); the trials written are "
+                              "intact: run the same command again to resume, with fewer --workers if memory is "
+                              "short") from None
         except BaseException:
             pool.terminate()
             raise

@@ -382,6 +382,14 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
     return scenarios, configurations
 
 
+def _importing_in_a_worker() -> bool:
+    """Whether this process is a spawned worker still importing the parent's script (the test
+    multiprocessing itself makes before refusing to start a process then)."""
+    import multiprocessing
+
+    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))
+
+
 def run_experiment(
     name: str,
     trials: int = 20,
@@ -404,6 +412,12 @@ def run_experiment(
     (default: the experiment's, else :func:`simulate_trial`); it must be importable by the
     workers. ``grid``: the swarm experiment's cells, TARGETSxAGENTS (default 1-4x3-6).
     """
+    if _importing_in_a_worker():
+        # a script without a main guard, imported again by each spawned worker: every worker had
+        # started a sweep of its own ("another sweep is writing there"), the pool then "killed
+        # from outside"
+        raise RuntimeError("run_experiment: called while a worker process imports your script (the workers are "
+                           "spawned, and each imports it): put the call under `if __name__ == \"__main__\":`")
     if not isinstance(name, str):  # None was a TypeError from deep in the message's own code
         raise TypeError(f"name: expected an experiment's name ({', '.join(EXPERIMENTS)}), got {type(name).__name__}")
     if trial is not None and not callable(trial):  # 5 was "'int' object has no attribute '__module__'"
@@ -531,7 +545,8 @@ def _check_record(record: Mapping[str, Any], name: str, experiment: Experiment) 
     the record is written: read back, such a file is damaged and would be run again each time."""
     missing = [k for k in record_keys(experiment) if k not in record]
     if missing:
-        raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} summarises them)")
+        raise ValueError(f"the trial function returned no {', '.join(missing)} (experiment {name} needs them for "
+                         "summary.csv or timing.csv)")
     huge = [k for k in record_keys(experiment) if isinstance(record[k], (int, float)) and abs(record[k]) > TRIAL_MAX_FIGURE]
     if huge:
         raise ValueError(f"the trial function returned {', '.join(huge)} past +-{TRIAL_MAX_FIGURE:g} "

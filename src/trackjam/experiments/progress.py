@@ -36,7 +36,9 @@ class _Reporter:
         for label, key, fmt in self.shown:
             values = [float(r[key]) for r in self.records if not math.isnan(float(r[key]))]
             parts.append(f"{label} {fmt.format(sum(values) / len(values)) if values else '-'}")
-        return "running means: " + ", ".join(parts)
+        # pooled over the configurations (a line about one configuration's trial had read as its own)
+        which = " over all configurations" if len(self.labels) > 1 else ""
+        return f"running means{which}: " + ", ".join(parts)
 
     def note(self, line: str) -> None:
         """One line on stderr: what a resume found (damaged or foreign files), or what the workers do first."""
