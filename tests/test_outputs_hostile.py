@@ -437,6 +437,7 @@ def test_an_experiment_of_one_trial_prints_its_means_without_nan(tmp_path):
     # a paired share's rounding (0.1 + 0.2 - 0.3) had printed "+6.94e-16 ± 13"
     assert _mean_ci(0.1 + 0.2 - 0.3, 0.13, 100, signed=True) == "+0 ± 13"
     assert _mean_ci(1e-3, 0.13, 100, signed=True) == "+0.1 ± 13"
+    assert _mean_ci(5e-10, 1e-10) == "5e-10 ± 1e-10"  # a small power in watts is a value, not noise
 
 
 @pytest.mark.parametrize("seed", ["-1", str(2**63)])

@@ -16,6 +16,7 @@ import typer
 from typer.core import TyperCommand, TyperGroup
 
 from trackjam.console import TERMINATED  # the exit status of a command ended by SIGTERM
+from trackjam.errors import counted
 
 
 def _flags_take_no_value(cls: type) -> type:
@@ -271,7 +272,7 @@ def presets() -> None:
     for name in preset_names():
         s = load_scenario(name)
         typer.echo(
-            f"{name:<20} {_count(s.n_agents, 'agent')}, {_count(s.steps, 'step')}, solver {s.control.solver}, "
+            f"{name:<20} {counted(s.n_agents, 'agent')}, {counted(s.steps, 'step')}, solver {s.control.solver}, "
             f"theta_a {s.antenna.opening_angle_deg:g} deg"
         )
 
@@ -298,7 +299,7 @@ def validate(
     s = _load(scenario, set_, warn=False)
     _runnable(s, set_)
     _warn(s)
-    typer.echo(f"ok: {s.name}, {_count(s.n_agents, 'agent')}, {_count(s.steps, 'step')}")
+    typer.echo(f"ok: {s.name}, {counted(s.n_agents, 'agent')}, {counted(s.steps, 'step')}")
 
 
 def _step_progress(total: int, label: str):
@@ -456,11 +457,6 @@ def _swarm_table(s, m: dict):
     return table
 
 
-def _count(n: int, word: str) -> str:
-    """``1 step``, ``3 steps``."""
-    return f"{n} {word}{'' if n == 1 else 's'}"
-
-
 def _share(v: float | None) -> str:
     return "-" if v is None else f"{100 * v:.0f} %"
 
@@ -479,7 +475,7 @@ def _quality_rows(m: dict) -> list[tuple[str, str]]:
         (f"held (confirmed, within {gate} m) / detectable steps", f"{m['held_steps']}/{n}  {_share(m['held_share'])}"),
         (f"false track (confirmed, > {gate} m off)", f"{m['false_track_steps']}/{n}  {_share(m['false_track_share'])}"),
         ("missed (not confirmed)", f"{m['missed_steps']}/{n}  {_share(m['missed_share'])}"),
-        ("phantom (confirmed, target hidden or absent)", _count(m["phantom_steps"], "step")),
+        ("phantom (confirmed, target hidden or absent)", counted(m["phantom_steps"], "step")),
         ("first held [steps after first detectable]", "never" if first is None else str(first)),
         ("re-acquired after each hidden spell", again),
         (f"ceiling: a chaser within {m['ceiling_d_m']:g} m", _share(m["ceiling_share"])),

@@ -73,6 +73,11 @@ def _head_repr(v, n: int) -> str:
     return r
 
 
+def counted(n: int, word: str) -> str:
+    """``1 step``, ``3 steps``: a count and its noun, for titles and messages."""
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
 def ends(text: str, keep: int = 60) -> str:
     """``text``, or its first and last ``keep`` characters around "..." when it is longer: a path
     of thousands of characters in a message, where its two ends say which it is."""

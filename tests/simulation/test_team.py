@@ -391,21 +391,28 @@ def test_with_every_message_delivered_every_agent_decides_the_same_x_bar_and_pla
     # own estimates differ), as the README says
     from trackjam.simulation import team as team_module
 
-    decided = []
+    from trackjam.control.pursuit import pursuit_aim
+
+    decided, own = [], []
     original = team_module.Team.decide
 
-    def spy(self, *args, **kwargs):
-        out = original(self, *args, **kwargs)
+    def spy(self, displacements, ant, low, high, *args, **kwargs):
+        # each agent's x_bar from its own inbox, computed apart (decide computes it once per inbox)
+        own.append([pursuit_aim([m.estimate for m in self.fresh(j)], np.array([m.position for m in self.fresh(j)]),
+                                self.settings.aim, low, high) for j in self.working()])
+        out = original(self, displacements, ant, low, high, *args, **kwargs)
         decided.append(out[0])
         return out
 
     monkeypatch.setattr(team_module.Team, "decide", spy)
     r = simulate(load_scenario(preset, ["steps=8", "filter.particles=500", "filter.birth_particles=100"] + extra))
     assert len(decided) == 8
-    for step in decided:
+    for step, apart in zip(decided, own):
         assert len({d.mode for d in step}) == 1 and all(d.heard == 3 for d in step)
-        for field in ("x_bar", "aim"):
-            values = [getattr(d, field) for d in step]
-            assert all(v is None for v in values) or all(np.array_equal(v, values[0]) for v in values)
+        assert all(a is None for a in apart) or all(np.array_equal(a, apart[0]) for a in apart)
+        for d, a in zip(step, apart):
+            assert (d.x_bar is None and a is None) or np.array_equal(d.x_bar, a)
+        aims = [d.aim for d in step]
+        assert all(v is None for v in aims) or all(np.array_equal(v, aims[0]) for v in aims)
     if preset == "pursuit":  # its own estimates are each agent's own
         assert np.any(np.ptp(by_agent(r, "existence"), axis=1) > 0)

@@ -251,6 +251,8 @@ def test_each_frame_names_and_colours_its_steps_track_quality(run):
     # a false track had been drawn in the same colour as a held one, under a title that said only
     # "track" (the planning mode)
     from trackjam.metrics.track_quality import CLASSES, step_classes
+    from matplotlib.colors import to_hex
+
     from trackjam.viz.figure import QUALITY_COLOURS, QUALITY_LABELS
 
     steps, agents, scenario = run
@@ -262,4 +264,4 @@ def test_each_frame_names_and_colours_its_steps_track_quality(run):
         title = frame["layout"]["title"]["text"]
         assert f"track quality: {QUALITY_LABELS[names[k]]}" in title
         marker = next(tr for tr in frame["data"] if tr["name"].startswith("reported estimate"))
-        assert marker["marker"]["color"] == QUALITY_COLOURS[names[k]]
+        assert marker["marker"]["color"] == to_hex(QUALITY_COLOURS[names[k]])  # plotly takes no "0.85" grey

@@ -61,8 +61,8 @@ def threaded_blas():
 
 
 def _conditioned(C: np.ndarray) -> np.ndarray:
-    """``C``, or when it is (numerically) singular ``C`` with its eigenvalues floored at
-    ``1 / COND_MAX`` of its largest: a ``filter.mode`` cluster of copies of one particle has no
+    """``C``, or when it is (numerically) singular ``C`` loaded on its diagonal (every eigenvalue
+    raised by the same amount) until its smallest is ``1 / COND_MAX`` of its largest: a ``filter.mode`` cluster of copies of one particle has no
     spread in position, and inverting that gave fused variances of -1e68. The covariances of an
     ordinary run (condition numbers of 10 to 1000) are returned as they are."""
     C = np.asarray(C, dtype=float)

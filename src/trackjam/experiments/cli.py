@@ -126,7 +126,7 @@ def _mean_ci(mean, ci, scale: float = 1.0, signed: bool = False) -> str:
     if mean is None or not math.isfinite(mean):
         return "-"
     mean = mean * scale
-    if ci is not None and math.isfinite(ci) and abs(mean) < 1e-9 * max(abs(ci * scale), 1.0):
+    if ci is not None and math.isfinite(ci) and abs(mean) < 1e-9 * abs(ci * scale):
         mean = 0.0  # shares' rounding (6.9e-18 = 0.1 + 0.2 - 0.3 ...) had printed "+6.94e-16 ± 13"
     shown = f"{mean:+.3g}" if signed else f"{mean:.3g}"
     if ci is None or not math.isfinite(ci):

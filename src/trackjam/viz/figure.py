@@ -27,6 +27,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
+from trackjam.errors import counted  # noqa: E402
 from trackjam.metrics.track_quality import CLASSES, step_classes  # noqa: E402
 from trackjam.radio.antenna import axis_of, interference_matrix  # noqa: E402
 from trackjam.viz.settings import FigureSettings, save_figure  # noqa: E402
@@ -272,7 +273,7 @@ def plot_run(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Pa
     if len(occ):
         handles.append(Patch(color=OCCLUSION_COLOUR, alpha=0.3, label="target occluded"))
     ax_level.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
-    fig.suptitle(f"trackjam run: {fs.name}  ({N} agent{'s' * (N != 1)}, {T} step{'s' * (T != 1)}, solver {fs.solver})")
+    fig.suptitle(f"trackjam run: {fs.name}  ({counted(N, 'agent')}, {counted(T, 'step')}, solver {fs.solver})")
     save_figure(fig, path, format="png")
     plt.close(fig)
     return path

@@ -16,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.colors import to_hex
 
 from trackjam.radio.antenna import AntennaModel
 from trackjam.viz.figure import (
@@ -34,6 +35,7 @@ from trackjam.viz.figure import (
     run_shape,
     steps_xyz,
 )
+from trackjam.errors import counted
 from trackjam.metrics.track_quality import CLASSES, step_classes
 from trackjam.viz.settings import FigureSettings
 
@@ -96,7 +98,8 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
         _trail(truth[path], "target trail", TRUTH_COLOUR, 4, showlegend=False),
         _point(truth[k], "target (truth)", TRUTH_COLOUR, "diamond", 6),
         _trail(est[path], "estimate trail", ESTIMATE_COLOUR, 3, showlegend=False),
-        _point(est[k], "reported estimate (colour: track quality)", QUALITY_COLOURS[quality[k]], "circle-open", 7),
+        _point(est[k], "reported estimate (colour: track quality)", to_hex(QUALITY_COLOURS[quality[k]]),
+               "circle-open", 7),
     ]
     # u_path row 0 is the start, row k + 1 is step k
     agent_path = np.concatenate([[0], path + 1]) if path[0] == 0 else path + 1
@@ -211,7 +214,7 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
             steps=slider_steps,
         )],
         annotations=[dict(
-            text=(f"{fs.name}: {N} agent{'s' * (N != 1)}, {T} step{'s' * (T != 1)}"
+            text=(f"{fs.name}: {counted(N, 'agent')}, {counted(T, 'step')}"
                   + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
                   + f", solver {fs.solver}; "
                   f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
