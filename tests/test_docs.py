@@ -227,3 +227,26 @@ def test_the_readmes_example_of_a_scenario_too_large_gives_its_figure():
     with pytest.raises(ConfigError) as err:
         load_scenario("paper-fig3", ["agents.n_inclination=360", "agents.n_azimuth=360"])
     assert quoted.group(1) in str(err.value)
+
+
+def test_the_small_options_table_is_the_committed_run_of_docs_search_options():
+    """docs/search_options.py's experiment made docs/experiments/search-options/, and the table of
+    docs/holding.md ("The small options together") quotes its counts."""
+    import importlib.util
+
+    from trackjam.experiments.summary import read_table
+
+    spec = importlib.util.spec_from_file_location("search_options", ROOT / "docs" / "search_options.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    experiment = module.experiment()
+    folder = ROOT / "docs" / "experiments" / "search-options"
+    rows = read_table(folder / "summary.csv")
+    assert [r["label"] for r in rows] == [c.label for c in experiment.configurations]
+    assert all(int(r["trials"]) == module.TRIALS for r in rows)
+    (pair,) = read_table(folder / "paired.csv")
+    preset, together = (int(r["reacquired"]) for r in rows)
+    gained, lost = int(pair["reacquired_gained"]), int(pair["reacquired_lost"])
+    assert together - preset == gained - lost  # the sign test counts the same trials
+    text = (ROOT / "docs" / "holding.md").read_text().split("## The small options together", 1)[1]
+    assert f"{preset} of 300" in text and f"{together} of 300" in text and f"{gained} / {lost}" in text
