@@ -537,9 +537,7 @@ class BernoulliFilter:
 
             def weigh(X: np.ndarray) -> np.ndarray:
                 # the component's density at t-1 is b times every scan's factor that weighed it
-                log_L = young.scans[0].log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
-                for other in young.scans[1:]:
-                    log_L = log_L + other.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+                log_L = self._log_factors(young.scans, X)
                 log_L_prev.append(log_L)
                 return log_L
 
@@ -588,9 +586,7 @@ class BernoulliFilter:
         X = np.vstack([x for x, _ in blocks])
         log_w = np.concatenate([lw for _, lw in blocks])
         self.weighed = len(X)
-        log_L = scan.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
-        for other in others:  # teammates' scans, independent of this one given the target
-            log_L = log_L + other.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+        log_L = self._log_factors((scan, *others), X)  # teammates' scans: independent of this one given the target
         log_wL = log_w + log_L
         log_V = float(kernel_logsumexp(log_wL))
         self.log_evidence = log_V
@@ -776,6 +772,14 @@ class BernoulliFilter:
             return nu
         nu_y = self._chain(self._young.nu) if predicted else self._young.nu
         return np.concatenate([nu, nu_y])
+
+    def _log_factors(self, scans: Sequence[Scan], X: np.ndarray) -> np.ndarray:
+        """log of the product of ``scans``' factors L at the particles ``X`` (scans independent
+        given the target), summed in their order, the first's first."""
+        log_L = scans[0].log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+        for other in scans[1:]:
+            log_L = log_L + other.log_factors(X, self.ant, self.noise_std, self.log_lambda_c)
+        return log_L
 
     def survivors(self) -> tuple[np.ndarray, np.ndarray]:
         """:attr:`particles` and :attr:`log_w` together, built once (each property builds both)."""

@@ -62,9 +62,10 @@ def threaded_blas():
 
 def _conditioned(C: np.ndarray) -> np.ndarray:
     """``C``, or when it is (numerically) singular ``C`` loaded on its diagonal (every eigenvalue
-    raised by the same amount) until its smallest is ``1 / COND_MAX`` of its largest: a ``filter.mode`` cluster of copies of one particle has no
-    spread in position, and inverting that gave fused variances of -1e68. The covariances of an
-    ordinary run (condition numbers of 10 to 1000) are returned as they are."""
+    raised by the same amount) until its smallest is ``1 / COND_MAX`` of its largest: a
+    ``filter.mode`` cluster of copies of one particle has no spread in position, and inverting
+    that gave fused variances of -1e68. The covariances of an ordinary run (condition numbers of
+    10 to 1000) are returned as they are."""
     C = np.asarray(C, dtype=float)
     eig = np.linalg.eigvalsh(0.5 * (C + C.T))
     floor = max(eig[-1], 1e-12) / COND_MAX
