@@ -347,3 +347,30 @@ def test_the_re_acquisition_row_says_why_there_is_nothing_to_show(tmp_path, occl
     assert r.exit_code == 0, r.output
     row = next(line for line in r.output.splitlines() if "re-acquired after each hidden spell" in line)
     assert words in row
+
+
+LITERAL_WARNING = "leaves out filter.cue, fusion.existence and control.fallback"
+
+
+def test_a_file_that_leaves_out_the_three_practical_choices_is_warned_about_once(tmp_path):
+    f = tmp_path / "small.yaml"
+    f.write_text("name: small\nsteps: 12\nantenna:\n  opening_angle_deg: 100\n")
+    r = trackjam("validate", str(f))
+    assert r.returncode == 0 and r.stdout.startswith("ok: small"), r.stderr
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"trackjam: warning: {f}: {LITERAL_WARNING}")
+    assert "base: paper-fig3" in lines[0]
+
+
+@pytest.mark.parametrize("text, sets", [
+    ("base: paper-fig3-literal\nsteps: 12\n", []),  # a base says what the file starts from
+    ("steps: 12\nfusion: {existence: mean}\n", []),  # naming a choice, even at its literal value
+    ("steps: 12\ncontrol:\n  fallback: hover\n", []),
+    ("steps: 12\n", ["--set", "filter.cue.existence=0.5"]),
+    ("steps: 12\n", ["--set", "control.fallback=hover"]),
+])
+def test_a_file_that_names_a_practical_choice_or_a_base_is_not_warned_about(tmp_path, text, sets):
+    f = tmp_path / "s.yaml"
+    f.write_text(text)
+    r = trackjam("validate", str(f), *sets)
+    assert r.returncode == 0 and LITERAL_WARNING not in r.stderr, r.stderr

@@ -332,3 +332,59 @@ def test_messages_in_flight_count_in_the_memory_check(monkeypatch):
         tracemalloc.stop()
     assert sum(len(waiting) for waiting in sim.team.exchange.pending.values()) == 8 * 7 * 3 * 20
     assert held <= limits.estimate(s)["memory_messages"][0] + 20e6  # the rest of a small run
+
+
+def test_a_file_on_a_base_preset_is_the_preset_with_the_files_keys_on_top(tmp_path):
+    f = tmp_path / "short.yaml"
+    f.write_text("base: pursuit\nname: short\nsteps: 12\nfilter: {particles: 5000}\n"
+                 "antenna: {power_levels_db: [off, -7]}\n")
+    s = load_scenario(f)
+    want = load_scenario("pursuit", ["name=short", "steps=12", "filter.particles=5000",
+                                     "antenna.power_levels_db=[off, -7]"])
+    assert s == want
+    assert s.filter.birth_particles == load_scenario("pursuit").filter.birth_particles  # merged, not replaced
+    assert s.filter.mode == load_scenario("pursuit").filter.mode and s.control.lead == 0.5
+
+
+def test_a_base_file_without_a_name_is_scenario_and_toml_takes_base_too(tmp_path):
+    f = tmp_path / "t.toml"
+    f.write_text('base = "paper-fig3"\n[control]\nsolver = "exact"\n')
+    s = load_scenario(f)
+    assert s.name == "scenario"
+    assert s.model_dump(exclude={"name"}) == load_scenario("paper-fig3", ["control.solver=exact"]).model_dump(
+        exclude={"name"})
+
+
+def test_a_files_targets_replace_its_bases_target_and_the_other_way_round(tmp_path):
+    f = tmp_path / "two.yaml"
+    f.write_text("base: paper-fig3\ntargets:\n  - {id: a, initial: [20, 20, 20, 1, 1, 1]}\n"
+                 "  - {id: b, initial: [60, 60, 60, 0, 0, 0]}\n")
+    s = load_scenario(f)
+    assert [t.id for t in s.targets] == ["a", "b"]
+    g = tmp_path / "one.yaml"
+    g.write_text("base: swarm-3\ntarget: {initial: [50, 50, 50, 0, 0, 0]}\n")
+    one = load_scenario(g)
+    assert one.targets is None and one.target.initial == (50, 50, 50, 0, 0, 0)
+    assert one.agents == load_scenario("swarm-3").agents
+
+
+@pytest.mark.parametrize("base, words", [
+    ("pursit", "base: 'pursit' is not a preset (did you mean pursuit?)"),
+    ("3", "base: 3 is not a preset;"),
+    ("runs/other.yaml", "base: 'runs/other.yaml' is not a preset;"),
+])
+def test_a_base_that_is_not_a_preset_is_one_error_naming_the_file_and_the_key(tmp_path, base, words):
+    f = tmp_path / "b.yaml"
+    f.write_text(f"base: {base}\nsteps: 5\n")
+    with pytest.raises(ConfigError) as e:
+        load_scenario(f)
+    assert str(e.value).startswith(f"{f}: {words}") and "paper-fig3" in str(e.value)
+
+
+def test_base_is_read_from_the_file_alone(tmp_path):
+    with pytest.raises(ConfigError, match=r"--set base=pursuit: base: unknown key here \(base, the preset"):
+        load_scenario("paper-fig3", ["base=pursuit"])
+    f = tmp_path / "nested.yaml"
+    f.write_text("base: paper-fig3\nfilter: {base: pursuit}\n")
+    with pytest.raises(ConfigError, match=r"filter\.base: unknown key"):
+        load_scenario(f)

@@ -241,15 +241,18 @@ def _load(scenario: str, overrides: list[str] | None, seed: int | None = None, w
     fields = {} if seed is None else {"seed": seed}
     s = load_scenario(scenario, overrides or [], **fields)
     if warn:
-        _warn(s)
+        _warn(s, scenario, overrides)
     return s
 
 
-def _warn(s) -> None:
-    """One line on stderr per suspicious but legal value of ``s``."""
+def _warn(s, scenario: str, overrides: list[str] | None) -> None:
+    """One line on stderr per suspicious but legal value of ``s``, loaded from ``scenario`` with
+    ``overrides`` (a file that leaves out the three practical choices is warned about too)."""
+    from trackjam.config.loading import literal_note
     from trackjam.config.warnings import scenario_warnings
 
-    for line in scenario_warnings(s):
+    note = literal_note(scenario, overrides, s)
+    for line in scenario_warnings(s) + ([note] if note else []):
         typer.echo(f"trackjam: warning: {line}", err=True)
 
 
@@ -298,7 +301,7 @@ def validate(
     """Check a scenario (a preset or a file); print `ok` or one line naming the key and the problem."""
     s = _load(scenario, set_, warn=False)
     _runnable(s, set_)
-    _warn(s)
+    _warn(s, scenario, set_)
     typer.echo(f"ok: {s.name}, {counted(s.n_agents, 'agent')}, {counted(s.steps, 'step')}")
 
 
@@ -353,7 +356,7 @@ def run(
     from trackjam.simulation.output import check_out_dir
 
     check_out_dir(out, s, default)  # before any work: nothing is computed for a folder we cannot use
-    _warn(s)  # after every refusal: a refused run prints its one line and nothing else
+    _warn(s, scenario, set_)  # after every refusal: a refused run prints its one line and nothing else
 
     from rich.console import Console
     from rich.markup import escape

@@ -223,6 +223,8 @@ def _section_keys(loc: tuple) -> list[str]:
 
 
 def _unknown_key(loc: tuple) -> str:
+    if loc == ("base",):  # read from a file before the overrides; a --set or keyword comes after it
+        return "unknown key here (base, the preset a scenario file starts from, is read from the file alone)"
     close = difflib.get_close_matches(str(loc[-1]), _section_keys(loc[:-1]), n=1, cutoff=0.6)
     if not close:
         return "unknown key"
@@ -656,7 +658,74 @@ def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
         raise ConfigError(f"{text!r}: an empty scenario name; give a preset (`trackjam presets`) or a YAML/TOML file")
     if isinstance(name_or_path, str) and text in preset_names():
         return _preset_data(text), f"preset {text}"
-    return _read_file(Path(text)), text
+    return _based(_read_file(Path(text)), text), text
+
+
+# the three practical choices of `paper-fig3` (README, "Our decisions") and their literal values
+PRACTICAL_CHOICES = (("filter", "cue", None), ("fusion", "existence", "mean"), ("control", "fallback", "hover"))
+
+
+def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scenario) -> str | None:
+    """A warning for a scenario file without ``base`` that leaves all three practical choices to
+    the literal defaults, neither the file nor an override naming one: its team starts knowing
+    nothing and, as `paper-fig3-literal`'s, may never confirm the target. None otherwise (a
+    preset, a file with ``base``, one that names a choice, even at its literal value)."""
+    text = str(name_or_path)
+    if isinstance(name_or_path, str) and text in preset_names():
+        return None
+    try:  # read again: the file was read and validated a moment ago
+        raw = _read_file(Path(text))
+    except (ConfigError, OSError):  # changed since: no warning rather than a second error
+        return None
+    if "base" in raw:
+        return None
+    set_keys = [item.partition("=")[0].strip() for item in _items(overrides)]
+    for section, key, literal in PRACTICAL_CHOICES:
+        dotted = f"{section}.{key}"
+        if any(k in (section, dotted) or k.startswith(dotted + ".") for k in set_keys):
+            return None
+        if section in raw and not (isinstance(raw[section], dict) and key not in raw[section]):
+            return None
+        if getattr(getattr(s, section), key) != literal:
+            return None
+    return (f"{text}: leaves out filter.cue, fusion.existence and control.fallback, so the team starts knowing "
+            "nothing, averages existence and hovers when it tracks nothing (the model document read literally, "
+            "as preset paper-fig3-literal, whose team never confirms the target); `base: paper-fig3` at the top "
+            "of the file starts from the preset instead, and naming any of the three keys silences this line")
+
+
+def _based(data: dict, label: str) -> dict:
+    """A file's mapping on top of the preset its ``base`` key names (ours): each section the file
+    gives is merged key by key into the preset's, every other value (a list, a number) replaces the
+    preset's; the preset's ``name`` is not taken (an unnamed file is ``scenario``), and the
+    preset's ``target`` (``targets``) gives way to a file that gives ``targets`` (``target``).
+    Without ``base`` the file's keys stand on the defaults, the model document read literally."""
+    if "base" not in data:
+        return data
+    base = data["base"]
+    if not isinstance(base, str) or base not in preset_names():
+        close = _close_preset(base) if isinstance(base, str) else None
+        hint = f" (did you mean {close}?)" if close else ""
+        raise ConfigError(f"{label}: base: {shortened(_shown_value(base), 60)} is not a preset{hint}; base names "
+                          f"the built-in preset the file starts from: {', '.join(preset_names())}")
+    merged = _preset_data(base)
+    merged.pop("name", None)
+    own = {k: v for k, v in data.items() if k != "base"}
+    for one, other in (("target", "targets"), ("targets", "target")):
+        if one in own:
+            merged.pop(other, None)
+    return _merged(merged, own)
+
+
+def _merged(under: dict, over: dict) -> dict:
+    """``over`` on top of ``under``: sections (mappings on both sides) merged key by key."""
+    out = dict(under)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merged(out[key], value)
+        else:
+            out[key] = value
+    return out
 
 
 def load_scenario(
