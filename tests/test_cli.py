@@ -374,3 +374,52 @@ def test_a_file_that_names_a_practical_choice_or_a_base_is_not_warned_about(tmp_
     f.write_text(text)
     r = trackjam("validate", str(f), *sets)
     assert r.returncode == 0 and LITERAL_WARNING not in r.stderr, r.stderr
+
+
+def test_presets_says_what_each_preset_is_for():
+    from trackjam.config import preset_names
+    from trackjam.config.loading import PRESET_SUMMARIES
+
+    r = runner.invoke(app, ["presets"])
+    lines = r.output.splitlines()
+    assert r.exit_code == 0 and len(lines) == len(preset_names()) == len(PRESET_SUMMARIES)
+    for name, line in zip(preset_names(), lines):
+        assert line.startswith(name + " ") and line.endswith(": " + PRESET_SUMMARIES[name])
+    assert len(set(PRESET_SUMMARIES.values())) == len(PRESET_SUMMARIES)  # paper-fig3 and -literal told apart
+
+
+def test_a_preset_dropped_into_the_folder_is_summed_up_by_its_first_comment(monkeypatch):
+    from trackjam.config import loading
+
+    monkeypatch.delitem(loading.PRESET_SUMMARIES, "pursuit")
+    assert loading.preset_summary("pursuit").startswith("The recommended preset for holding a target")
+
+
+@pytest.mark.parametrize("text, words", [
+    ("antenna:\nheight: 30\n", "antenna: a section, given no value (are its keys indented under it? leave the "
+                               "section out for its defaults); height: unknown key"),
+    ("antenna: 3\n", "antenna: a section of keys (key: value, indented under it), got the number 3"),
+    ("antenna: hello\n", "antenna: a section of keys (key: value, indented under it), got the text 'hello'"),
+    ("control: {grasp: [1, 2]}\n", "control.grasp: a section of keys (key: value, indented under it), got a list"),
+])
+def test_a_section_that_is_not_a_mapping_says_so_in_words(tmp_path, text, words):
+    f = tmp_path / "s.yaml"
+    f.write_text(text)
+    one_line_exit_2(trackjam("validate", str(f)), f"{f}: {words}")
+
+
+@pytest.mark.parametrize("item, hint", [
+    ("control.solver=Exact", "(did you mean exact?)"),
+    ("control.solver=grsp", "(did you mean grasp?)"),
+    ("antenna.pointing=AIM", "(did you mean aim?)"),
+    ("fusion.share=scan", "(did you mean scans?)"),
+])
+def test_a_misspelt_choice_gets_a_did_you_mean(item, hint):
+    r = trackjam("validate", "paper-fig3", "--set", item)
+    one_line_exit_2(r, f"--set {item}: ")
+    assert r.stderr.strip().endswith(hint)
+    assert "did you mean" not in trackjam("validate", "paper-fig3", "--set", "control.solver=xyz").stderr
+
+
+def test_a_misspelt_experiment_gets_a_did_you_mean():
+    one_line_exit_2(trackjam("experiment", "tabel1"), "unknown experiment 'tabel1' (did you mean table1?); choose one of")

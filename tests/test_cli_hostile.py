@@ -477,10 +477,12 @@ def test_a_run_and_an_experiment_write_into_a_folder_whose_name_is_not_utf8(tmp_
     assert sorted(os.listdir(base + b"/run\xff")) == [b"agents.parquet", b"measurements.parquet", b"scenario.yaml",
                                                         b"steps.parquet", b"summary.json"]
     exp = os.fsdecode(base + b"/exp\xff")
+    said = []
     for _ in range(2):  # the second reads the trials back
         r = _trackjam("experiment", "constraints", "--trials", "1", "--steps", "1", "--workers", "1", "--out", exp)
         assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
-    assert "all trials were already in OUT" in r.stdout
+        said.append(r.stdout)
+    assert "ran 2 trials; wrote" in said[0] and "all trials were already in OUT" in said[1]
     assert len(os.listdir(base + b"/exp\xff/trials")) == 2
 
 

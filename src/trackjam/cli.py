@@ -269,14 +269,15 @@ def _runnable(s, overrides: list[str] | None) -> None:
 @app.command()
 @user_errors
 def presets() -> None:
-    """List the built-in scenario presets."""
+    """List the built-in scenario presets, each with what it is for."""
     from trackjam.config import load_scenario, preset_names
+    from trackjam.config.loading import preset_summary
 
     for name in preset_names():
         s = load_scenario(name)
         typer.echo(
             f"{name:<20} {counted(s.n_agents, 'agent')}, {counted(s.steps, 'step')}, solver {s.control.solver}, "
-            f"theta_a {s.antenna.opening_angle_deg:g} deg"
+            f"theta_a {s.antenna.opening_angle_deg:g} deg: {preset_summary(name)}"
         )
 
 
@@ -284,7 +285,7 @@ def presets() -> None:
 @user_errors
 def show_config(
     scenario: str = typer.Argument("paper-fig3", help=SCENARIO_HELP),
-    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+    set_: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
 ) -> None:
     """Print the fully resolved scenario as YAML."""
     from trackjam.config import scenario_to_yaml
@@ -296,7 +297,7 @@ def show_config(
 @user_errors
 def validate(
     scenario: str = typer.Argument(..., help=SCENARIO_HELP),
-    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+    set_: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
 ) -> None:
     """Check a scenario (a preset or a file); print `ok` or one line naming the key and the problem."""
     s = _load(scenario, set_, warn=False)
@@ -344,7 +345,7 @@ def run(
     scenario: str = typer.Argument("paper-fig3", help=SCENARIO_HELP),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of every random choice (default: the scenario's)."),
     out: Optional[str] = typer.Option(None, "--out", metavar="<path>", help="Output folder (default: runs/<name>-seed<seed>)."),
-    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+    set_: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write run.png and replay.html."),
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
@@ -495,7 +496,7 @@ def experiment(
     workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: CPU count)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address, [SCHEME://]HOST:PORT with tcp (the default), tls, ws or wss."),
     out: Optional[str] = typer.Option(None, "--out", metavar="<path>", help="Output folder (default: runs/experiment-NAME); rerun to resume."),
-    set_: Optional[list[str]] = typer.Option(None, "--set", help=SET_HELP),
+    set_: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
     grid: Optional[str] = typer.Option(None, "--grid", help="swarm only: TARGETSxAGENTS, e.g. 1-4x3-6 (the default)."),
 ) -> None:
     """Run a Monte Carlo experiment, the paper's (table1, constraints) or ours (resumable; local pool or Dask)."""

@@ -270,10 +270,24 @@ def _errors(err: ValidationError) -> list[tuple[str, str]]:
                 out.append((".".join(str(p) for p in where), where))
             continue
         msg = _unknown_key(loc) if e["type"] == "extra_forbidden" else e["msg"].removeprefix("Value error, ")
+        if e["type"] == "model_type" and e["input"] is None:  # `antenna:` and its keys not indented under it
+            msg = ("a section, given no value (are its keys indented under it? leave the section out for its "
+                   "defaults)")
+        elif e["type"] == "model_type":  # pydantic: "Input should be a valid dictionary or instance of Antenna"
+            value = e["input"]
+            kind = _yaml_kind(value) or (f"the text {shortened(_shown_value(value), 40)}" if isinstance(value, str)
+                                         else f"a {type(value).__name__}")
+            msg = f"a section of keys (key: value, indented under it), got {kind}"
         if e["type"] == "string_type" and (kind := _yaml_kind(e["input"])):  # name: 2001-12-14, yes, 1e5, 0x10
             key = ".".join(str(p) for p in loc)
             msg += (f" (read as {kind}; a text needs quotes: {key}: \"...\" in a file, --set '{key}=\"...\"' "
                     "on the command line)" if kind != "null" else " (read as null: no value was given)")
+        if e["type"] == "literal_error" and isinstance(e["input"], str):  # `Exact`, `grsp`
+            choices = re.findall(r"'([^']*)'", str(e.get("ctx", {}).get("expected", "")))
+            close = [c for c in choices if c.lower() == e["input"].strip().lower()] or difflib.get_close_matches(
+                e["input"].strip().lower(), choices, n=1, cutoff=0.6)
+            if close:
+                msg += f" (did you mean {close[0]}?)"
         if loc == ("control", "solver") and e["type"] == "literal_error" and _registered(e["input"]):
             msg += (f" ({e['input']!r} is a solver registered from a script: solve(), solver_policy() and "
                     "Planned take it; a scenario takes a solver named in config/model.py's Control.solver)")
@@ -360,6 +374,28 @@ def _close_preset(name: str) -> str | None:
         return None
     close = difflib.get_close_matches(name.lower().replace("_", "-"), preset_names(), n=1, cutoff=0.6)
     return close[0] if close else None
+
+
+# what each built-in preset is for, as `trackjam presets` says it
+PRESET_SUMMARIES = {
+    "paper-fig3": "the paper's Fig. 3 with our three practical choices (a cued start, existence fused as evidence, "
+                  "search when lost)",
+    "paper-fig3-literal": "Fig. 3 with the model document read literally; its team never confirms the target",
+    "pursuit": "the recommended team: paper-fig3 with antennas pointing where the team aims, as a real team's "
+               "must, and the options that hold the target best",
+    "swarm-3": "three rogue drones and five pursuers (several targets, ours)",
+}
+
+
+def preset_summary(name: str) -> str:
+    """What preset ``name`` is for: :data:`PRESET_SUMMARIES`, else (a file dropped into the presets)
+    its first comment line."""
+    if name in PRESET_SUMMARIES:
+        return PRESET_SUMMARIES[name]
+    for line in resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text().splitlines():
+        if line.startswith("#") and line.strip("# "):
+            return printable(shortened(line.strip("# "), 100))
+    return "(no comment at the top of its file)"
 
 
 def _preset_data(name: str) -> dict:

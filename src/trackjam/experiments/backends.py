@@ -292,7 +292,8 @@ def _dask_executor(address: str) -> Iterator[tuple[Executor, int]]:
     try:
         from distributed import Client
     except ImportError:
-        raise ConfigError("--scheduler needs dask.distributed: pip install 'trackjam[dask]'") from None
+        raise ConfigError("--scheduler needs dask.distributed, the dask extra: pip install \".[dask]\" from the trackjam "
+                          "checkout") from None
     ip = check_dask_scheduler(address, CONNECT_TIMEOUT_S)  # the timeout as it is now (a test makes it short)
     scheme, _, port = parse_scheduler_address(address)
     # plain TCP connects to the IP address the pre-flight reached: the client's own name lookup

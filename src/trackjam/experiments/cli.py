@@ -7,7 +7,7 @@ import re
 import sys
 from pathlib import Path
 
-from trackjam.errors import printable
+from trackjam.errors import counted, printable
 from trackjam.experiments.engine import run_experiment
 from trackjam.experiments.definitions import get_experiment
 
@@ -73,7 +73,7 @@ def experiment_command(
             console.print(paired_table(result, experiment.metrics, units, applying))
         else:
             print(f"{len(result.paired)} paired comparisons in {printable(str(result.out / 'paired.csv'))}")
-    ran = f"ran {result.ran} trials" if result.ran else "all trials were already in OUT"
+    ran = f"ran {counted(result.ran, 'trial')}" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {printable(str(result.out))}")
 
 

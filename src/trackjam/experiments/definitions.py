@@ -266,7 +266,11 @@ def get_experiment(name: str, grid: str | None = None) -> Experiment:
     try:
         experiment = EXPERIMENTS[name]
     except KeyError:
-        raise ConfigError(f"unknown experiment {shortened(name, 40)!r}; choose one of: {', '.join(EXPERIMENTS)}") from None
+        import difflib
+
+        close = difflib.get_close_matches(str(name).lower(), list(EXPERIMENTS), n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise ConfigError(f"unknown experiment {shortened(name, 40)!r}{hint}; choose one of: {', '.join(EXPERIMENTS)}") from None
     if grid is None:
         return experiment
     if experiment.trials != SWARM:
