@@ -388,3 +388,21 @@ def test_base_is_read_from_the_file_alone(tmp_path):
     f.write_text("base: paper-fig3\nfilter: {base: pursuit}\n")
     with pytest.raises(ConfigError, match=r"filter\.base: unknown key"):
         load_scenario(f)
+
+
+def test_a_preset_dropped_into_the_folder_may_name_a_base_and_a_loop_of_bases_is_one_error(tmp_path, monkeypatch):
+    import types
+    from importlib import resources
+
+    from trackjam.config import loading
+
+    real = resources.files("trackjam.presets")
+    for name in ("paper-fig3", "pursuit"):
+        (tmp_path / f"{name}.yaml").write_text(real.joinpath(f"{name}.yaml").read_text())
+    (tmp_path / "mine.yaml").write_text("base: pursuit\nname: mine\nsteps: 9\n")
+    (tmp_path / "loop-a.yaml").write_text("base: loop-b\nname: loop-a\n")
+    (tmp_path / "loop-b.yaml").write_text("base: loop-a\nname: loop-b\n")
+    monkeypatch.setattr(loading, "resources", types.SimpleNamespace(files=lambda package: tmp_path))
+    assert load_scenario("mine") == load_scenario("pursuit", ["name=mine", "steps=9"])
+    with pytest.raises(ConfigError, match=r"^preset loop-a: base: a loop of bases \(loop-a -> loop-b -> loop-a\)$"):
+        load_scenario("loop-a")

@@ -398,8 +398,15 @@ def preset_summary(name: str) -> str:
     return "(no comment at the top of its file)"
 
 
-def _preset_data(name: str) -> dict:
-    return _yaml(resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text())
+def _preset_data(name: str, seen: tuple[str, ...] = ()) -> dict:
+    """A preset's mapping, on top of its own ``base`` if it names one (a file dropped into the
+    presets may); a loop of bases is one error."""
+    data = _yaml(resources.files("trackjam.presets").joinpath(f"{name}.yaml").read_text())
+    if not isinstance(data, dict):
+        raise ConfigError(f"preset {name}: the scenario must be a mapping of keys, got {type(data).__name__}")
+    if name in seen:
+        raise ConfigError(f"preset {name}: base: a loop of bases ({' -> '.join((*seen, name))})")
+    return _based(data, f"preset {name}", (*seen, name))
 
 
 def _read_text(path: Path) -> str:
@@ -730,7 +737,7 @@ def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scena
             "of the file starts from the preset instead, and naming any of the three keys silences this line")
 
 
-def _based(data: dict, label: str) -> dict:
+def _based(data: dict, label: str, seen: tuple[str, ...] = ()) -> dict:
     """A file's mapping on top of the preset its ``base`` key names (ours): each section the file
     gives is merged key by key into the preset's, every other value (a list, a number) replaces the
     preset's; the preset's ``name`` is not taken (an unnamed file is ``scenario``), and the
@@ -744,7 +751,7 @@ def _based(data: dict, label: str) -> dict:
         hint = f" (did you mean {close}?)" if close else ""
         raise ConfigError(f"{label}: base: {shortened(_shown_value(base), 60)} is not a preset{hint}; base names "
                           f"the built-in preset the file starts from: {', '.join(preset_names())}")
-    merged = _preset_data(base)
+    merged = _preset_data(base, seen)
     merged.pop("name", None)
     own = {k: v for k, v in data.items() if k != "base"}
     for one, other in (("target", "targets"), ("targets", "target")):
