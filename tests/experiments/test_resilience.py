@@ -478,6 +478,14 @@ def test_summarising_a_folder_holds_its_parameters_to_a_sweeps_bounds(fresh, tmp
     ({"out": "a\x00b"}, ValueError, "out: holds a NUL character, which no path may"),
     ({"out": b"e"}, TypeError, "out: expected a folder's path as text, got bytes"),
     ({"out": ""}, ValueError, "out: expected a folder's path, got an empty text"),
+    # object of type 'int' has no len(); AttributeError: 'int' object has no attribute 'strip'
+    ({"scheduler": 5}, TypeError, "scheduler: expected an address as text"),
+    ({"name": "swarm", "grid": 5}, TypeError, "grid: expected TARGETSxAGENTS as text"),
+    # read a character at a time ("--set 's': expected key=value"); AttributeError: 'int' object
+    # has no attribute 'partition'
+    ({"overrides": "steps=3"}, ConfigError, "overrides: a list of 'key=value' texts"),
+    ({"overrides": [5]}, ConfigError, "overrides: a list of 'key=value' texts"),
+    ({"overrides": {"antenna.r0=3"}}, ConfigError, "overrides: a list of 'key=value' texts, in order"),
 ])
 def test_run_experiment_names_an_argument_of_the_wrong_kind(tmp_path, kwargs, error, words):
     args = {"name": "constraints", "trials": 1, "steps": 2, "workers": 1, "out": tmp_path / "e"} | kwargs

@@ -605,7 +605,7 @@ def set_dotted(data: dict, key: str, value: Any, label: str | None = None) -> No
     node[parts[-1]] = value
 
 
-def _items(overrides: Any) -> list[str]:
+def override_items(overrides: Any) -> list[str]:
     """The ``--set`` texts as a list (a lone text would be read a character at a time), from any
     iterable in order: not a set or a mapping."""
     if isinstance(overrides, (set, frozenset, typing.Mapping)):
@@ -625,7 +625,7 @@ def _items(overrides: Any) -> list[str]:
 def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
     """Apply dotted ``key=value`` overrides (values parsed as YAML) to a copy of a mapping."""
     data = _deep_copy(data)
-    for item in _items(overrides):
+    for item in override_items(overrides):
         if "=" not in item:
             raise ConfigError(f"--set {shortened(item, SET_SHOWN)!r}: expected key=value")
         key, _, value = item.partition("=")
@@ -783,7 +783,7 @@ def load_scenario(
     ``--set antena.height=3: antena: unknown key (did you mean antenna?)``: the overrides are
     ``--set`` items, and one wording serves both (the tests and the README quote it).
     """
-    overrides = _items(overrides)
+    overrides = override_items(overrides)
     data, label = load_scenario_data(name_or_path)
     data = apply_overrides(data, overrides)
     blame = overridden_keys(overrides)

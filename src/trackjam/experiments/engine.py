@@ -31,6 +31,7 @@ import numpy as np
 import trackjam
 from trackjam.arguments import text_path
 from trackjam.config import Scenario
+from trackjam.config.loading import override_items
 from trackjam.config.limits import MAX_STEPS, check_seed, check_trial_runs, check_workers, run_memory, shown_integer
 from trackjam.errors import ConfigError, OutputError, printable, shortened
 from trackjam.experiments.backends import SerialExecutor, one_numba_thread, open_executor, parse_scheduler_address
@@ -424,12 +425,19 @@ def run_experiment(
         raise TypeError(f"trial: expected a function of a scenario that returns a record, got {type(trial).__name__}")
     if out is not None:
         text_path("out", out, "a folder's path")
+    # 5 was "object of type 'int' has no len()" (scheduler) or an AttributeError (grid)
+    for option, value, what in (("grid", grid, "TARGETSxAGENTS as text, e.g. '1-4x3-6'"),
+                                ("scheduler", scheduler, "an address as text, [SCHEME://]HOST:PORT")):
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"{option}: expected {what}, got {type(value).__name__} {shortened(repr(value), 40)}")
+    # a lone text was read a character at a time ("--set 's': expected key=value"), [5] was an
+    # AttributeError: the list load_scenario takes, refused as it refuses it
+    overrides = override_items(overrides)
     experiment = get_experiment(name, grid)
     trial = trial or experiment.trial or simulate_trial
     # numpy's integers are integers (a --seed np.int64(1) was "must be an integer"); JSON takes ints
     trials, steps, seed = (int(v) if isinstance(v, np.integer) else v for v in (trials, steps, seed))
     _check_arguments(trials, steps, seed, workers, scheduler)
-    overrides = list(overrides or [])
     out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
     scenarios, configurations = _planned(experiment, trials, steps, seed, overrides, workers, scheduler)
     report = make_reporter(progress, experiment, configurations, total=len(scenarios))
