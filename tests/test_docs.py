@@ -250,3 +250,24 @@ def test_the_small_options_table_is_the_committed_run_of_docs_search_options():
     assert together - preset == gained - lost  # the sign test counts the same trials
     text = (ROOT / "docs" / "holding.md").read_text().split("## The small options together", 1)[1]
     assert f"{preset} of 300" in text and f"{together} of 300" in text and f"{gained} / {lost}" in text
+
+
+def test_docs_input_names_every_warning_a_scenario_can_give():
+    """docs/input.md's list of suspicious but legal values names the key of every warning
+    (`comms.delay_steps`, `control.belief_at_least` and `control.belief_spread` warned and were
+    listed nowhere)."""
+    import trackjam
+    from trackjam.config.warnings import scenario_warnings
+
+    doc = (ROOT / "docs" / "input.md").read_text()
+    doc = doc.split("## Suspicious but legal values", 1)[1].split("\n## ", 1)[0]
+    s = trackjam.load_scenario("pursuit", [
+        "steps=5", "antenna.opening_angle_deg=1", "target.appears=9", "target.occlusions=[[4, 7], [8, 9]]",
+        "agents.initial=[[30, 30, 30], [30, 30, 30], [10, 15, 15]]", "comms.failures=[{agent: 0, step: 9, mode: channel}]",
+        "comms.delay_steps=5", "control.plan_over=point", "control.belief_at_least=1", "filter.association_misses=true",
+        "fusion.share=posteriors", "filter.team_proposals=true", "metrics.gate=1000",
+    ])
+    lines = scenario_warnings(s)
+    keys = {re.match(r"([\w.]+)", line).group(1) for line in lines}
+    assert len(keys) == 11, lines
+    assert sorted(k for k in keys if f"`{k}" not in doc) == []
