@@ -322,6 +322,22 @@ def test_a_long_malformed_set_item_is_shortened():
     assert message.startswith(f"--set {item[:57]}...: not valid YAML: expected ',' or ']'") and len(message) < 200
 
 
+@pytest.mark.parametrize("kind", ["set", "toml", "yaml", "duplicate"])
+def test_a_long_key_is_shortened_in_the_message(tmp_path, kind):
+    # the key was echoed whole: an unknown key of 100 kB (a --set item, a quoted TOML key, an
+    # explicit YAML key) or one given twice made a line of 100 kB
+    key = "k" * 100_000
+    if kind == "set":
+        message = _refused("paper-fig3", [f"filter.{key}=1"])
+    else:
+        f = tmp_path / ("s.toml" if kind == "toml" else "s.yaml")
+        f.write_text({"toml": f'steps = 3\n"{key}" = 1\n', "yaml": f"steps: 3\n? {key}\n: 1\n",
+                      "duplicate": f"steps: 3\n? {key}\n: 1\n? {key}\n: 2\n"}[kind])
+        message = _refused(str(f), [])
+    assert len(message) < 300 and "kkkkkkkk..." in message
+    assert message.endswith("unknown key") or "duplicate key 'kkk" in message
+
+
 def test_a_set_value_that_is_not_yaml_and_not_a_flow_collection_is_still_text():
     # "a: b: c" is no YAML: the value is that text, refused by the name's own rule
     message = _refused("paper-fig3", ["name=a: b: c"])

@@ -31,6 +31,7 @@ MAX_TEXT = 2 * MAX_FILE_BYTES
 MAX_DEPTH = 50  # levels of nesting; the readers after the parser (copies, validation) recurse
 SET_SHOWN = 60  # characters of a --set item a message shows
 MAX_SHOWN = 8  # problems one message lists (a list of 20,000 bad entries would be a line of 600 kB)
+KEY_SHOWN = 80  # characters of a key a message shows (an unknown key of 100 kB made a line of 100 kB)
 
 
 class _Loader(yaml.SafeLoader):
@@ -77,7 +78,7 @@ class _Loader(yaml.SafeLoader):
                 )
             if key in seen:
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r} (line {key_node.start_mark.line + 1})", key_node.start_mark
+                    None, None, f"duplicate key {bounded_repr(key)} (line {key_node.start_mark.line + 1})", key_node.start_mark
                 )
             seen.add(key)
 
@@ -357,7 +358,7 @@ def validate_scenario(data: Any, source: str = "scenario", overridden: dict[str,
         problems = _errors(err)
         for key, msg in problems[:MAX_SHOWN]:
             where = _blamed(key, msg, overridden or {}) or source
-            by_source.setdefault(where, []).append(f"{key}: {msg}" if key else msg)
+            by_source.setdefault(where, []).append(f"{shortened(key, KEY_SHOWN)}: {msg}" if key else msg)
         more = f"; and {len(problems) - MAX_SHOWN} more problems" if len(problems) > MAX_SHOWN else ""
         raise ConfigError("; ".join(f"{where}: " + "; ".join(found) for where, found in by_source.items()) + more) from None
 
