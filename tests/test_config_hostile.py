@@ -338,6 +338,13 @@ def test_a_long_key_is_shortened_in_the_message(tmp_path, kind):
     assert message.endswith("unknown key") or "duplicate key 'kkk" in message
 
 
+def test_a_long_key_under_a_value_is_shortened_in_the_message():
+    # "--set steps.kkk...=1: steps is not a section" echoed the whole key (100 kB)
+    key = "k" * 100_000
+    assert _refused("paper-fig3", [f"steps.{key}=1"]) == f"--set steps.{key[:51]}...: steps is not a section"
+    assert len(_refused("paper-fig3", [f"{key}=1", f"{key}.x=1"])) < 300
+
+
 def test_a_set_value_that_is_not_yaml_and_not_a_flow_collection_is_still_text():
     # "a: b: c" is no YAML: the value is that text, refused by the name's own rule
     message = _refused("paper-fig3", ["name=a: b: c"])

@@ -592,8 +592,9 @@ def set_dotted(data: dict, key: str, value: Any, label: str | None = None) -> No
     """Set ``data[a][b][c] = value`` for ``key = "a.b.c"``, creating sections as needed.
     ``label`` names what set it in a message (default: ``--set KEY``)."""
     parts = key.strip().split(".")
+    shown = shortened(key, SET_SHOWN)  # a key of 100 kB was echoed whole
     if not all(parts):
-        raise ConfigError(f"{label or f'--set {key!r}'}: empty key")
+        raise ConfigError(f"{label or f'--set {shown!r}'}: empty key")
     node = data
     for p in parts[:-1]:
         nxt = node.get(p)
@@ -601,7 +602,7 @@ def set_dotted(data: dict, key: str, value: Any, label: str | None = None) -> No
             nxt = {}
             node[p] = nxt
         if not isinstance(nxt, dict):
-            raise ConfigError(f"{label or f'--set {key}'}: {p} is not a section")
+            raise ConfigError(f"{label or f'--set {shown}'}: {shortened(p, KEY_SHOWN)} is not a section")
         node = nxt
     node[parts[-1]] = value
 
