@@ -175,6 +175,17 @@ def test_seed_experiments_let_the_user_move_the_occlusion_but_not_the_sweep():
         _scenarios("comms", overrides=["seed=4"])
 
 
+@pytest.mark.parametrize("key, words", [
+    ("steps", "set by every trial of an experiment"), ("antenna.pointing", "swept by experiment holding"),
+    ("targets", "draws one target per trial"),
+])
+def test_a_long_key_the_experiment_owns_is_shortened_in_the_message(key, words):
+    # "--set steps.kkk...: set by every trial" echoed the whole key (100 kB)
+    with pytest.raises(ConfigError) as err:
+        _scenarios("holding", overrides=[f"{key}.{'k' * 100_000}=1"])
+    assert words in str(err.value) and len(str(err.value)) < 200
+
+
 def test_the_preset_row_of_holding_is_the_preset_itself():
     row = next(c for c in get_experiment("holding").configurations if c.label == "preset pursuit")
     s = _scenarios("holding")[row.index - 1]

@@ -43,7 +43,7 @@ from trackjam.config import (
     set_dotted,
     validate_scenario,
 )
-from trackjam.config.loading import overridden_keys
+from trackjam.config.loading import SET_SHOWN, overridden_keys
 from trackjam.errors import ConfigError, shortened
 from trackjam.experiments.experiment import (  # noqa: F401  (the experiments' vocabulary, from here too)
     BASE_PRESET,
@@ -291,15 +291,16 @@ def check_overrides(experiment: Experiment, overrides: list[str]) -> None:
     """Refuse ``--set`` keys that the trials or the experiment's sweep set themselves."""
     for item in overrides:
         key = item.partition("=")[0].strip()
+        shown = shortened(key, SET_SHOWN)  # a key of 100 kB was echoed whole
         if experiment.trials != SWARM and _overlaps(key, "targets"):  # else: "give target or targets"
-            raise ConfigError(f"--set {key}: experiment {experiment.name} draws one target per trial; "
+            raise ConfigError(f"--set {shown}: experiment {experiment.name} draws one target per trial; "
                               "several targets: trackjam experiment swarm")
         if key_owned := _owned(experiment, key):
             hint = " (use --steps)" if key_owned == "steps" else " (use --seed)" if key_owned == "seed" else ""
-            raise ConfigError(f"--set {key}: set by every trial of an experiment, not settable{hint}")
+            raise ConfigError(f"--set {shown}: set by every trial of an experiment, not settable{hint}")
         for swept in sorted(experiment.swept_keys):
             if _overlaps(key, swept):
-                raise ConfigError(f"--set {key}: swept by experiment {experiment.name} ({swept})")
+                raise ConfigError(f"--set {shown}: swept by experiment {experiment.name} ({swept})")
 
 
 def _check_own_settings(experiment: Experiment) -> None:
