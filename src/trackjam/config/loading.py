@@ -724,7 +724,7 @@ def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scena
         return None
     if "base" in raw:
         return None
-    set_keys = [item.partition("=")[0].strip() for item in _items(overrides)]
+    set_keys = [item.partition("=")[0].strip() for item in override_items(overrides)]
     for section, key, literal in PRACTICAL_CHOICES:
         dotted = f"{section}.{key}"
         if any(k in (section, dotted) or k.startswith(dotted + ".") for k in set_keys):
