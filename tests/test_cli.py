@@ -423,3 +423,10 @@ def test_a_misspelt_choice_gets_a_did_you_mean(item, hint):
 
 def test_a_misspelt_experiment_gets_a_did_you_mean():
     one_line_exit_2(trackjam("experiment", "tabel1"), "unknown experiment 'tabel1' (did you mean table1?); choose one of")
+
+
+def test_show_config_refuses_what_validate_refuses_for_the_swarm_engine():
+    v = trackjam("validate", "swarm-3", "--set", "control.plan_over=belief")
+    s = trackjam("show-config", "swarm-3", "--set", "control.plan_over=belief")
+    assert one_line_exit_2(s, "--set control.plan_over=belief") == one_line_exit_2(v, "--set control.plan_over=belief")
+    assert s.stdout == ""

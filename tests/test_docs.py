@@ -265,9 +265,10 @@ def test_docs_input_names_every_warning_a_scenario_can_give():
         "steps=5", "antenna.opening_angle_deg=1", "target.appears=9", "target.occlusions=[[4, 7], [8, 9]]",
         "agents.initial=[[30, 30, 30], [30, 30, 30], [10, 15, 15]]", "comms.failures=[{agent: 0, step: 9, mode: channel}]",
         "comms.delay_steps=5", "control.plan_over=point", "control.belief_at_least=1", "filter.association_misses=true",
-        "fusion.share=posteriors", "filter.team_proposals=true", "metrics.gate=1000",
+        "fusion.share=posteriors", "filter.team_proposals=true", "metrics.gate=1000", "control.belief_samples=8",
     ])
-    lines = scenario_warnings(s)
+    unseen = trackjam.load_scenario("pursuit", ["target.occlusions=[]", "oracle.follow_up=3"])
+    lines = scenario_warnings(s) + scenario_warnings(unseen)
     keys = {re.match(r"([\w.]+)", line).group(1) for line in lines}
-    assert len(keys) == 11, lines
+    assert len(keys) == 13, lines
     assert sorted(k for k in keys if f"`{k}" not in doc) == []

@@ -290,7 +290,10 @@ def show_config(
     """Print the fully resolved scenario as YAML."""
     from trackjam.config import scenario_to_yaml
 
-    typer.echo(scenario_to_yaml(_load(scenario, set_)), nl=False)
+    s = _load(scenario, set_, warn=False)
+    _runnable(s, set_)  # what `validate` and `run` refuse is not printed as a scenario to run
+    _warn(s, scenario, set_)
+    typer.echo(scenario_to_yaml(s), nl=False)
 
 
 @app.command()

@@ -42,6 +42,14 @@ def scenario_warnings(s: Scenario) -> list[str]:
     if c.belief_spread is not None and c.plan_over != "belief":
         out.append(f"control.belief_spread: {c.belief_spread:g} m has no effect under control.plan_over: {c.plan_over} "
                    "(it bounds plan_over: belief)")
+    samples = type(c).model_fields["belief_samples"].default
+    if c.belief_samples != samples and c.plan_over != "belief":
+        out.append(f"control.belief_samples: {c.belief_samples} has no effect under control.plan_over: {c.plan_over} "
+                   "(it is the sample size of the steps planned over the belief)")
+    if s.oracle is not None and s.oracle != type(s.oracle)() and not any(
+            a <= s.steps for t in s.target_list for a, _ in t.occlusions):
+        out.append("oracle: has no effect in this run, which has no occlusion (each oracle acts before, during or "
+                   "after an occlusion of the target)")
     if s.filter.association_misses and (s.targets is None or len(s.targets) < 2):
         out.append("filter.association_misses: true has no effect with one target (its Bernoulli filter has no "
                    "association; the LMB filters of several targets have)")
