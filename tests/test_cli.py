@@ -1,7 +1,6 @@
 """The command line: presets, show-config, validate, and bad input (one line, exit 2)."""
 
 import json
-import re
 import subprocess
 import sys
 from pathlib import Path

@@ -38,7 +38,6 @@ from trackjam.config import (
     apply_overrides,
     load_scenario,
     load_scenario_data,
-    preset_names,
     scenario_to_dict,
     set_dotted,
     validate_scenario,
