@@ -14,7 +14,16 @@ import pytest
 from scipy import stats
 
 from trackjam.experiments.engine import run_experiment
-from trackjam.experiments.summary import COUNTS, METRICS, QUALITY, WHERE_DEFINED, paired_rows, read_table, table_rows
+from trackjam.experiments.summary import (
+    COUNTS,
+    METRICS,
+    QUALITY,
+    WHERE_DEFINED,
+    count_ci95,
+    paired_rows,
+    read_table,
+    table_rows,
+)
 
 NAN = math.nan
 CONF = {"n_controls": 79, "opening_angle_deg": 80.0, "constraints": True, "solver": "exact"}
@@ -42,6 +51,52 @@ def plain(values: list[float]) -> tuple[float, float, int]:
     return sum(x) / n, stats.t.ppf(0.975, n - 1) * statistics.stdev(x) / math.sqrt(n), n
 
 
+def _binomial_tail(n: int, p: float, ks) -> float:
+    return math.fsum(math.comb(n, i) * p**i * (1 - p) ** (n - i) for i in ks)
+
+
+def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """The exact (Clopper-Pearson) interval by its definition, without scipy: the lower bound is
+    the p at which P(X >= k) = (1 - level) / 2, the upper the p at which P(X <= k) = (1 - level) / 2
+    (X ~ Binomial(n, p); 0 at k = 0, 1 at k = n). Each tail is monotone in p: bisection."""
+    a = (1 - level) / 2
+
+    def root(f) -> float:  # f increasing on [0, 1], f(0) < 0 < f(1)
+        lo, hi = 0.0, 1.0
+        for _ in range(200):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
+        return (lo + hi) / 2
+
+    low = 0.0 if k == 0 else root(lambda p: _binomial_tail(n, p, range(k, n + 1)) - a)
+    high = 1.0 if k == n else root(lambda p: a - _binomial_tail(n, p, range(k + 1)))
+    return low, high
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 8, 13, 30])
+def test_a_counts_interval_is_the_clopper_pearson_95_percent_interval(n):
+    """count_ci95's bounds against the exact interval worked out from the binomial tails (a
+    Wilson or a 90 % interval, or a k or n miscounted, passed the tests that only asked for
+    lo <= k / n <= hi); NaN and None are trials where the count does not apply."""
+    for k in range(n + 1):
+        got = count_ci95([1.0] * k + [NAN, None] + [0.0] * (n - k))
+        assert got[:2] == (k, n)
+        assert got[2:] == pytest.approx(clopper_pearson(k, n), rel=1e-9, abs=1e-12), (k, n)
+    assert count_ci95([NAN, None])[:2] == (0, 0) and all(math.isnan(v) for v in count_ci95([NAN, None])[2:])
+
+
+def test_the_closed_form_tells_the_intervals_apart():
+    """The reference is not loose: the 95 % interval of 3 of 5 differs from its 90 % one and from
+    the Wilson interval by far more than the tolerance above."""
+    lo95, hi95 = clopper_pearson(3, 5)
+    lo90, hi90 = clopper_pearson(3, 5, 0.90)
+    assert lo95 < lo90 - 0.02 and hi95 > hi90 + 0.02
+    z, n, p = stats.norm.ppf(0.975), 5, 3 / 5
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    assert abs((centre - half) - lo95) > 0.02 and abs((centre + half) - hi95) > 0.02
+
+
 def test_the_quality_shares_are_the_ones_that_may_be_undefined():
     assert {key for _, key, _ in QUALITY} <= WHERE_DEFINED
     assert not {key for _, key, _ in METRICS} & WHERE_DEFINED  # defined in every trial: no count column
@@ -57,7 +112,9 @@ def test_summary_means_a_share_over_the_trials_where_it_is_defined():
                 pytest.approx(mean), pytest.approx(ci), n)
         assert (row["ospa_mean"], row["ospa_ci95"]) == (pytest.approx(plain(OSPA[c])[0]), pytest.approx(plain(OSPA[c])[1]))
         assert "ospa_trials" not in row
-        assert (row["reacquired"], row["reacquired_of"]) == (sum(v == 1 for v in REACQUIRED[c]), 3)
+        k = sum(v == 1 for v in REACQUIRED[c])
+        assert (row["reacquired"], row["reacquired_of"]) == (k, 3)
+        assert (row["reacquired_lo"], row["reacquired_hi"]) == pytest.approx(clopper_pearson(k, 3), rel=1e-9, abs=1e-12)
     assert [k for k in rows[0] if k.startswith("held")] == ["held_mean", "held_ci95", "held_trials"]
     assert rows[0]["held_trials"] == 3 and rows[1]["held_trials"] == 4
 
