@@ -1,6 +1,7 @@
 """No target believed: agents hover and transmit as high as Eq. (13) allows (ours)."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -63,3 +64,34 @@ def test_ties_between_permutations_go_to_the_lexicographically_largest(antenna):
     lv = fallback_levels(u, np.tile(centre, (3, 1)), ant, True)
     assert np.array_equal(lv, fallback_levels_reference(u, np.tile(centre, (3, 1)), ant, True))
     assert lv.tolist() == [top, low, low]
+
+
+@pytest.mark.parametrize("sender_first", [True, False])
+def test_an_agent_receiving_exactly_delta_is_jammed(antenna, sender_first):
+    """Eq. (13) asks for strictly less than delta. Agent "in" sits in the sender's cone, not the
+    reverse; delta is set to the sender's l_max times that one gain, so at l_max the receiver gets
+    delta to the last bit (one product, nothing summed), and the sender must drop one level.
+    Both of the search's checks are exercised: the sender placed first (the receiver's own
+    check, `inc >= delta`) and the receiver first (`recv >= delta`, on an agent already placed).
+    Random geometry never hits delta exactly, so `>` in either check passed the brute-force test."""
+    from dataclasses import replace
+
+    sender, receiver = np.array([50.0, 50, 50]), np.array([50.0, 50, 60])
+    aim = np.array([50.0, 50, 80])  # both aimed up: the receiver is in the sender's cone
+    u = np.array([sender, receiver] if sender_first else [receiver, sender])
+    s, r = (0, 1) if sender_first else (1, 0)
+    aims = np.tile(aim, (2, 1))
+    G = hover_gains(u, aims, antenna)
+    assert G[r, s] > 0 and G[s, r] == 0
+    lw = antenna.levels_w
+    top = len(lw) - 1
+    ant = replace(antenna, delta_w=float(lw[top] * G[r, s]))
+    assert (G @ lw[[top, top]])[r] == ant.delta_w  # exactly delta, by construction
+    assert lw[top - 1] * G[r, s] < ant.delta_w
+    want = np.full(2, top)
+    want[s] = top - 1
+    for got in (fallback_levels(u, aims, ant, True), fallback_levels_reference(u, aims, ant, True)):
+        assert got.tolist() == want.tolist()
+    # one unit in the last place more, and both keep l_max
+    above = replace(antenna, delta_w=float(np.nextafter(ant.delta_w, np.inf)))
+    assert fallback_levels(u, aims, above, True).tolist() == [top, top]
