@@ -6,6 +6,7 @@ per-step classes give."""
 from __future__ import annotations
 
 import math
+import statistics
 
 import numpy as np
 import pytest
@@ -273,3 +274,8 @@ def test_differences_equal_but_for_rounding_have_an_interval_of_zero():
     assert mean_ci95(d) == (pytest.approx(-1 / 3), 0.0)
     x = [0.5, 1.5, 4.0]  # a real spread keeps its t-interval
     assert mean_ci95(x)[1] == pytest.approx(stats.t.ppf(0.975, 2) * np.std(x, ddof=1) / np.sqrt(3))
+    # ... however small, once it is past rounding: a relative spread of 1e-9 (a million times the
+    # last bit) keeps its interval (a tolerance of 1e-2 set the interval of [1, 1.001] to 0)
+    for y in ([1.0, 1.0 + 1e-9], [1.0, 1.001, 0.9995], [1e6, 1e6 + 1e-3]):
+        want = stats.t.ppf(0.975, len(y) - 1) * statistics.stdev(y) / math.sqrt(len(y))
+        assert want > 0 and mean_ci95(y)[1] == pytest.approx(want, rel=1e-5), y
