@@ -1,6 +1,8 @@
 """A run's summary carries the track quality judged by the truth and the clairvoyant ceiling,
 and its steps log the per-step class: all three agree with the pure functions on a real run."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -65,3 +67,39 @@ def test_confirmed_steps_count_the_reports_not_the_existence_alone():
     believed = int(np.sum(r.steps["existence"] > 0.5))
     assert r.summary["confirmed_steps"] == counts["held"] + counts["false_track"] + counts["phantom"]
     assert r.summary["confirmed_steps"] < believed  # this run has withheld reports: the test can tell
+
+
+def test_the_summarys_figures_are_the_means_and_counts_of_its_own_logs():
+    """Fig. 4's figures (jamming incidents per agent, the powers, OSPA) from the logs by hand,
+    row by row with each row's agent id (not the reshape summarise uses). A run with Eq. (13)
+    off, so that agents are jammed several steps each and the powers vary from step to step:
+    under the constraints no agent is ever jammed, and counting "jammed at least once" instead
+    of the jammed steps, a maximum for the mean interference, or a median for the mean target
+    power passed every test."""
+    s = load_scenario("paper-fig3", SHORT + ["control.constraints=false"])
+    r = simulate(s)
+    a, st = r.agents, r.steps
+    n = len(s.agents.initial)
+    jammed_steps = [0] * n
+    for agent, jammed in zip(a["agent"].tolist(), a["jammed"].tolist()):
+        jammed_steps[agent] += bool(jammed)
+    assert r.summary["jamming_incidents"] == jammed_steps
+    assert max(jammed_steps) >= 2  # the case tells a count of steps from "ever jammed"
+    assert r.summary["jamming_incidents_per_agent"] == pytest.approx(sum(jammed_steps) / n, rel=1e-12)
+    # an agent is jammed when it receives at least the interference limit (Eq. 13)
+    limit = 10 ** (s.antenna.interference_limit_db / 10)
+    assert a["jammed"].tolist() == [bool(w >= limit) for w in a["interference_w"].tolist()]
+
+    def mean(values):
+        values = [float(v) for v in values]
+        return math.fsum(values) / len(values)
+
+    assert len(set(a["interference_w"].tolist())) > 2 and len(set(st["target_received_w"].tolist())) > 2
+    assert r.summary["agent_received_w_mean"] == pytest.approx(mean(a["interference_w"]), rel=1e-12)
+    assert r.summary["transmit_w_mean"] == pytest.approx(mean(a["power_w"]), rel=1e-12)
+    assert r.summary["target_received_w_mean"] == pytest.approx(mean(st["target_received_w"]), rel=1e-12)
+    assert r.summary["ospa_mean"] == pytest.approx(mean(st["ospa"]), rel=1e-12)
+    # the power at the target is the sum over the agents of what each delivers to it
+    for t, total in zip(st["t"].tolist(), st["target_received_w"].tolist()):
+        mine = [w for tt, w in zip(a["t"].tolist(), a["to_target_w"].tolist()) if tt == t]
+        assert len(mine) == n and total == pytest.approx(math.fsum(mine), rel=1e-12, abs=1e-300)
