@@ -64,7 +64,7 @@ def test_bench_filter_group_prints_and_writes_its_timings(tmp_path):
     data = json.loads(out.read_text())
     assert set(data) == {"machine", "quick", "filter", "calibration"} and data["quick"] is True
     cal = data["calibration"]
-    assert cal["workload"].startswith("numpy sort") and 0 < cal["start_ms"] < 1e4 and 0 < cal["end_ms"] < 1e4
+    assert cal["workload"].startswith("numpy sort") and cal["start_ms"] > 0 and cal["end_ms"] > 0
     assert f"{cal['start_ms']:.1f} ms" in r.output and "calibration at the end" in r.output
     row = data["filter"][0]
     _sane(row)

@@ -46,8 +46,9 @@ def test_a_swarm_run_past_the_machine_is_refused_naming_the_key(overrides, key, 
 
 def test_the_same_settings_with_one_target_still_pass():
     # the swarm figures apply to the swarm engine only
-    load_scenario("paper-fig3", ["agents.n_inclination=40", "agents.n_azimuth=40",
-                                 "agents.radial_steps=[1,2,3,4,5,6]"])
+    s = load_scenario("paper-fig3", ["agents.n_inclination=40", "agents.n_azimuth=40",
+                                     "agents.radial_steps=[1,2,3,4,5,6]"])
+    assert (s.agents.n_inclination, s.agents.n_azimuth, len(s.agents.radial_steps)) == (40, 40, 6)
     load_scenario("paper-fig3", ["filter.particles=1000000"])
 
 

@@ -120,6 +120,12 @@ def test_an_experiment_registered_from_a_script_runs_as_written(tmp_path):
     run_experiment and writes its paired comparison."""
     out = _run(_block('EXPERIMENTS["lead"]'), tmp_path)
     label, diff = out.strip().splitlines()[-1].rsplit(" ", 1)
-    assert label == "lead 0 -> 0.5" and float(diff) == float(diff)
     written = {p.name for p in (tmp_path / "runs" / "experiment-lead").iterdir()}
     assert {"summary.csv", "paired.csv", "lead.png", "trials"} <= written
+    import csv
+
+    with open(tmp_path / "runs" / "experiment-lead" / "paired.csv", newline="") as f:
+        paired = list(csv.DictReader(f))
+    assert label == "lead 0 -> 0.5" == paired[0]["label"]
+    # what the script printed (result.paired, in full) is the file's, which keeps 6 significant figures
+    assert float(paired[0]["ospa_diff"]) == float(f"{float(diff):.6g}")

@@ -320,8 +320,10 @@ def test_lmb_params_check_every_field(changed, error, pattern):
 
 
 def test_lmb_params_take_numpy_numbers_and_a_few_particles():
-    LMBParams(**{**BASE, "particles": np.int64(4), "birth_particles": 4, "accel_var": np.float32(0.5),
-                 "clutter_rate": np.array(5.0), "prune": 1e-12, "visibility": (0.05, 0.25)})
+    p = LMBParams(**{**BASE, "particles": np.int64(4), "birth_particles": 4, "accel_var": np.float32(0.5),
+                     "clutter_rate": np.array(5.0), "prune": 1e-12, "visibility": (0.05, 0.25)})
+    assert p.particles == 4 and p.birth_particles == 4 and p.prune == 1e-12
+    assert p.accel_var == 0.5 and float(p.clutter_rate) == 5.0 and tuple(p.visibility) == (0.05, 0.25)
 
 
 U = np.array([10.0, 10.0, 10.0])

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -232,13 +231,12 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, kwargs, word
     assert not (tmp_path / "out").exists()
 
 
-def test_an_unreachable_scheduler_fails_with_a_clear_error_in_seconds(tmp_path):
+def test_an_unreachable_scheduler_fails_with_a_clear_error(tmp_path):
     address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
-    t0 = time.monotonic()
     with pytest.raises(ConfigError, match=f"cannot reach the Dask scheduler at {address}") as err:
         run_experiment("constraints", scheduler=address, out=tmp_path, **SWEEP)
-    assert time.monotonic() - t0 < 20  # a guard against a hang, not a benchmark
     assert "\n" not in str(err.value)
+    assert not any(tmp_path.iterdir())  # checked before anything is written
 
 
 def test_a_worker_warms_up_once_per_configuration_before_timing_and_the_record_is_unchanged(monkeypatch):
