@@ -272,3 +272,64 @@ def test_docs_input_names_every_warning_a_scenario_can_give():
     keys = {re.match(r"([\w.]+)", line).group(1) for line in lines}
     assert len(keys) == 13, lines
     assert sorted(k for k in keys if f"`{k}" not in doc) == []
+
+
+def _held_by_step():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("held_by_step", ROOT / "docs" / "held_by_step.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_held_by_step_counts_are_drawn_from_the_committed_trials_and_agree_with_the_summary(tmp_path):
+    """docs/held_by_step.py: steps.csv is the counts of trials.csv, each configuration's
+    re-acquisitions in summary.csv are the trials held again after the occlusion, and the shares
+    docs/holding.md and the README quote are those of steps.csv."""
+    import csv
+
+    h = _held_by_step()
+    trials = h.read_csv(h.TRIALS_TABLE)
+    steps = h.read_csv(h.TABLE)
+    assert len(trials) == len(h.ROWS) * h.TRIALS and steps == h.table(trials)
+    with open(h.TABLE.parent / "summary.csv", newline="") as f:
+        summary = {int(r["config"]): r for r in csv.DictReader(f)}
+    for config in range(1, len(h.ROWS) + 1):
+        mine = [r for r in trials if r["config"] == config]
+        assert int(summary[config]["reacquired"]) == sum("H" in r["classes"][17:] for r in mine)
+        assert all(set(r["classes"][13:17]) <= set("SP") for r in mine)  # the occlusion: never detectable
+
+    def pooled(config, key, first, last):
+        rows = [r for r in steps if r["config"] == config and first <= r["t"] <= last]
+        return f"{100 * sum(r[key] for r in rows) / sum(r['detectable'] for r in rows):.1f} %"
+
+    section = (ROOT / "docs" / "holding.md").read_text().split("## Step by step", 1)[1].split("\n## ", 1)[0]
+    rows = {line.split(" | ")[0].strip("| "): line for line in section.splitlines() if line.startswith("| ")}
+    for label, key, span in (("held, steps 1-13 (before the occlusion)", "held", (1, 13)),
+                             ("held, steps 18-30 (after it)", "held", (18, 30)),
+                             ("false track, steps 1-13", "false_track", (1, 13)),
+                             ("false track, steps 18-30", "false_track", (18, 30))):
+        cells = [c.strip() for c in rows[label].strip("|").split("|")][1:]
+        want = [pooled(c, key, *span) for c in (1, 2, 3)] + ([pooled(1, "chaser_within_8m", *span)] if key == "held"
+                                                             else [""])
+        assert cells == want, label
+    readme = " ".join(README.split())
+    assert (f"holds the target on {pooled(3, 'held', 1, 13)} of the trial-steps, where a clairvoyant chaser is "
+            f"within 8 m of it on {pooled(1, 'chaser_within_8m', 1, 13)}") in readme
+    assert f"after it, on {pooled(3, 'held', 18, 30)} against the chaser's {pooled(1, 'chaser_within_8m', 18, 30)}" in readme
+
+
+def test_the_held_by_step_trials_rerun_to_their_committed_rows(tmp_path, monkeypatch):
+    """Trial 0 of each configuration, run again from the current code, gives its rows of
+    trials.csv (its class at every step and the chaser's reach); the figure draws."""
+    from trackjam.experiments.definitions import EXPERIMENTS
+    from trackjam.experiments.engine import run_experiment
+
+    h = _held_by_step()
+    monkeypatch.setitem(EXPERIMENTS, h.NAME, h.experiment())
+    run_experiment(h.NAME, trials=1, steps=h.STEPS, seed=h.SEED_OF_EXPERIMENT, workers=1, out=tmp_path / "out")
+    committed = [r for r in h.read_csv(h.TRIALS_TABLE) if r["trial"] == 0]
+    assert h.trial_rows(tmp_path / "out", trials=1) == committed and len(committed) == len(h.ROWS)
+    h.draw(h.read_csv(h.TABLE), tmp_path / "figure.png")
+    assert (tmp_path / "figure.png").stat().st_size > 10_000
