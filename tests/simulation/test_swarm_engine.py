@@ -354,3 +354,14 @@ def test_the_swarm_cue_velocity_is_each_targets_first_velocity():
         for track in a.filter.tracks:
             k = track.label[1]
             np.testing.assert_allclose(np.average(track.X[:, 3:6], axis=0, weights=np.exp(track.log_w)), v[k], atol=0.2)
+
+
+def test_a_text_id_with_dollar_signs_is_drawn_as_written(tmp_path):
+    # matplotlib read "$\frac{$" as mathtext: the figure failed with a ParseSyntaxException
+    # after the whole run, and `trackjam run` wrote nothing
+    from trackjam.simulation.output import write_run
+
+    ids = ["targets=[{id: '$\\frac{$', initial: [20, 20, 20, 1.5, 2.0, 1.7]}, {id: '$x$', initial: [60, 60, 60, -1, 0, 0]}]"]
+    run = simulate(two("steps=2", *ids))
+    files = write_run(run, tmp_path / "out")
+    assert (tmp_path / "out" / "run.png") in files

@@ -48,6 +48,9 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
     t = np.asarray(steps["t"], dtype=float)
     T = len(t)
     ids = list(dict.fromkeys(str(i) for i in tg["target"]))
+    # a text id is the user's: its dollar signs are literal, not matplotlib's mathtext (an id
+    # "$\frac{$" had failed the figure with a ParseSyntaxException after the whole run)
+    shown = [name.replace("$", r"\$") for name in ids]
     K, N = len(ids), int(ag["agent"].max()) + 1
     colours = target_colours(K)
     fig = plt.figure(figsize=(15, 8), layout="constrained")
@@ -59,7 +62,7 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
         top.annotate(f"{j + 1}", (ag["x"][rows][-1], ag["y"][rows][-1]), fontsize=8)
     for k, name in enumerate(ids):
         rows = tg["target"] == name
-        top.plot(tg["truth_x"][rows], tg["truth_y"][rows], color=colours[k], lw=2.2, label=f"target {name}")
+        top.plot(tg["truth_x"][rows], tg["truth_y"][rows], color=colours[k], lw=2.2, label=f"target {shown[k]}")
     hold = np.array([ids.index(x) if x in ids else -1 for x in tr["target"]], dtype=np.int64)
     dot = [colours[h] if h >= 0 else NONE_COLOUR for h in hold]
     top.scatter(tr["est_x"], tr["est_y"], c=dot, s=12, marker="o", edgecolors="none")
@@ -86,7 +89,7 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
     ax2 = fig.add_subplot(grid[1, 1], sharex=ax)
     ax2.imshow(band.T, aspect="auto", cmap=cmap, vmin=0, vmax=K + 1, interpolation="nearest",
                extent=(0.5, T + 0.5, K - 0.5, -0.5))
-    ax2.set_yticks(range(K), [f"target {name}" for name in ids])
+    ax2.set_yticks(range(K), [f"target {name}" for name in shown])
     ax2.set_title("held (its colour), missed (grey), not detectable (white)")
     ax3 = fig.add_subplot(grid[2, 1], sharex=ax)
     ax3.plot(t, steps["ospa"], color="black", label="OSPA")
