@@ -432,3 +432,23 @@ def test_with_association_misses_teammates_misses_lower_a_confident_tracks_exist
     for seed in range(20):
         first, last = run("gibbs", seed, True)
         assert max(first) < 1.0 and max(last) < 0.9
+
+
+@pytest.mark.parametrize("method", ["gibbs", "ranked"])
+def test_a_certain_track_that_is_never_missed_stays_certain(method):
+    """r = 1 and p_D = 1 at every particle (antenna.p_d_max: 1, the particles within R_0): the
+    share of "missed" in which the track exists is none. Its eta row's 0 had made the coefficient
+    -inf - (-inf), a NaN existence with a RuntimeWarning (swarm-3 with antenna.p_d_max: 1 lost
+    tracks of targets it had just detected); the Bernoulli filter gives 1."""
+    ant = antenna_model(load_scenario("paper-fig3", ["antenna.p_d_max=1"]))
+    X = np.array([[*(U + d * AX), 0, 0, 0] for d in (2.0, 3.0, 4.0)])
+    assert np.all(detection_probability(X[:, :3], U, AIM, ant.l_max, ant) == 1.0)
+    Z = h(X[1], U)[None, :]
+    log_w = np.log(np.full(3, 1 / 3))
+    e, log_post, _, _ = bernoulli_update(1.0, X, log_w, Z, U, AIM, ant.l_max, ant, SIGMA, LOG_KAPPA)
+    sc = Scan.of(Z, U, AIM, ant.l_max, ant)
+    with np.errstate(invalid="raise"):
+        (post,), _, _ = lmb_update([Track((1, 0), 1.0, X, log_w)], sc, ant, SIGMA, LOG_KAPPA,
+                                   np.random.default_rng(0), method)
+    assert e == 1.0 and post.r == 1.0
+    np.testing.assert_allclose(np.exp(post.log_w), np.exp(log_post), atol=1e-12)

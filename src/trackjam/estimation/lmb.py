@@ -226,9 +226,14 @@ def posterior_track(track: Track, f: Factors, beta_row: np.ndarray) -> Track:
     with np.errstate(divide="ignore"):
         log_r = math.log(track.r)
         log_beta = np.log(beta_row)
-        # the share of "undetected" in which the track exists and was missed
+        # the share of "undetected" in which the track exists and was missed: none when a track
+        # that exists is never missed (p_D = 1 at every particle: antenna.p_d_max 1 within R_0),
+        # where r = 1 also made eta's 0 - inf - (-inf) a NaN existence
         log_coef = log_beta.copy()
-        log_coef[0] = log_beta[0] + log_r + log_mean[0] - f.log_eta[0]
+        if log_r + log_mean[0] == -np.inf:
+            log_coef[0] = -np.inf
+        else:
+            log_coef[0] = log_beta[0] + log_r + log_mean[0] - f.log_eta[0]
     r_new = float(np.exp(kernel_logsumexp(log_coef)))
     if r_new <= 0.0:
         return replace(track, r=0.0)
