@@ -129,3 +129,15 @@ def test_the_command_line_refuses_a_bad_grid_in_one_line(tmp_path):
     r = CliRunner().invoke(app, ["experiment", "table1", "--grid", "1x3", "--out", str(tmp_path / "o")])
     assert r.exit_code == 2 and "has no grid" in r.output
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("grid", ["1x3", "1x2,3"])
+def test_an_option_the_swarm_engine_does_not_read_is_refused_up_front_in_a_grid_of_one_target(tmp_path, grid):
+    # its K = 1 cells list their one target and run on the swarm engine: only cells of K >= 2
+    # were checked, so the sweep started, wrote OUT, and its first trial failed on the option
+    r = CliRunner().invoke(app, ["experiment", "swarm", "--grid", grid, "--trials", "1", "--steps", "2", "--workers",
+                                 "1", "--set", "control.plan_over=belief", "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert r.output.startswith("trackjam: error: --set control.plan_over=belief: control.plan_over: 'belief' is not "
+                               "simulated with several targets yet") and r.output.count("\n") == 1
+    assert not (tmp_path / "o").exists()

@@ -50,7 +50,7 @@ from trackjam.experiments.definitions import (
 )
 from trackjam.experiments.swarm import swarm_trial
 from trackjam.experiments.progress import make_reporter
-from trackjam.simulation.build import check_swarm_options, several_targets
+from trackjam.simulation.build import check_swarm_options
 from trackjam.experiments.summary import (
     TIMING,
     TRIAL_MAX_FIGURE,
@@ -367,7 +367,9 @@ def _plan(experiment: Experiment, trials: int, steps: int, seed: int, overrides:
         scenarios = {(c.index, k): swarm_scenario(experiment, space, base, c, k, seed)
                      for k in range(trials) for c in experiment.configurations}
         for c in experiment.configurations:  # an option the swarm engine does not read: refused here, not by a worker
-            if several_targets(scenarios[(c.index, 0)]):
+            # every cell that lists its targets runs on the swarm engine, K = 1 too (swarm_trial): a
+            # grid of K = 1 alone (--grid 1x3) had started the sweep, its first trial then refused
+            if scenarios[(c.index, 0)].targets is not None:
                 check_swarm_options(scenarios[(c.index, 0)], overrides)
     else:
         draws = [draw_for(base, seed, k, space) for k in range(trials)]
