@@ -406,3 +406,15 @@ def test_a_preset_dropped_into_the_folder_may_name_a_base_and_a_loop_of_bases_is
     assert load_scenario("mine") == load_scenario("pursuit", ["name=mine", "steps=9"])
     with pytest.raises(ConfigError, match=r"^preset loop-a: base: a loop of bases \(loop-a -> loop-b -> loop-a\)$"):
         load_scenario("loop-a")
+
+
+@pytest.mark.parametrize("base, text, sets", [
+    # the file's `targets: null` (as show-config writes it) is the one target: the preset's, kept
+    ("paper-fig3", "targets: null\n", ["targets=null"]),
+    # `target: null` beside a base's list sets the one target aside, as it does beside a file's list
+    ("swarm-3", "target: null\n", ["target=null"]),
+])
+def test_a_target_or_targets_given_as_null_keeps_the_bases_other_one(tmp_path, base, text, sets):
+    f = tmp_path / "b.yaml"
+    f.write_text(f"base: {base}\n{text}")
+    assert load_scenario(f).model_dump(exclude={"name"}) == load_scenario(base, sets).model_dump(exclude={"name"})

@@ -743,7 +743,7 @@ def _based(data: dict, label: str, seen: tuple[str, ...] = ()) -> dict:
     """A file's mapping on top of the preset its ``base`` key names (ours): each section the file
     gives is merged key by key into the preset's, every other value (a list, a number) replaces the
     preset's; the preset's ``name`` is not taken (an unnamed file is ``scenario``), and the
-    preset's ``target`` (``targets``) gives way to a file that gives ``targets`` (``target``).
+    preset's ``target`` (``targets``) gives way to a file that gives ``targets`` (``target``), not null.
     Without ``base`` the file's keys stand on the defaults, the model document read literally."""
     if "base" not in data:
         return data
@@ -757,7 +757,9 @@ def _based(data: dict, label: str, seen: tuple[str, ...] = ()) -> dict:
     merged.pop("name", None)
     own = {k: v for k, v in data.items() if k != "base"}
     for one, other in (("target", "targets"), ("targets", "target")):
-        if one in own:
+        # a null one is none given: `targets: null` is the base's one target, `target: null` beside
+        # the base's list sets the one target aside (Scenario), as with --set
+        if own.get(one) is not None:
             merged.pop(other, None)
     return _merged(merged, own)
 
