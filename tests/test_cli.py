@@ -429,3 +429,21 @@ def test_show_config_refuses_what_validate_refuses_for_the_swarm_engine():
     s = trackjam("show-config", "swarm-3", "--set", "control.plan_over=belief")
     assert one_line_exit_2(s, "--set control.plan_over=belief") == one_line_exit_2(v, "--set control.plan_over=belief")
     assert s.stdout == ""
+
+
+def test_a_file_of_several_targets_is_pointed_to_a_base_it_can_run_on(tmp_path):
+    """The swarm engine runs with fusion.existence: mean only: the warning said the file 'leaves
+    out' it and pointed to `base: paper-fig3`, on which the same file is refused
+    (fusion.existence: 'evidence' is not simulated with several targets)."""
+    targets = "targets:\n  - {id: a, initial: [20, 20, 20, 1, 1, 1]}\n  - {id: b, initial: [60, 60, 60, 0, 0, 0]}\n"
+    f = tmp_path / "two.yaml"
+    f.write_text(targets)
+    r = trackjam("validate", str(f))
+    assert r.returncode == 0, r.stderr
+    (line,) = r.stderr.splitlines()
+    assert "leaves out filter.cue and control.fallback" in line and "fusion.existence" not in line
+    base = line.split("`base: ", 1)[1].split("`", 1)[0]
+    g = tmp_path / "based.yaml"
+    g.write_text(f"base: {base}\n{targets}")
+    r = trackjam("validate", str(g))
+    assert r.returncode == 0 and r.stderr == "", r.stderr

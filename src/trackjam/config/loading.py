@@ -725,7 +725,10 @@ def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scena
     if "base" in raw:
         return None
     set_keys = [item.partition("=")[0].strip() for item in override_items(overrides)]
-    for section, key, literal in PRACTICAL_CHOICES:
+    # several targets run on the swarm engine, which takes fusion.existence: mean only
+    several = len(s.target_list) > 1
+    choices = [c for c in PRACTICAL_CHOICES if not (several and c[:2] == ("fusion", "existence"))]
+    for section, key, literal in choices:
         dotted = f"{section}.{key}"
         if any(k in (section, dotted) or k.startswith(dotted + ".") for k in set_keys):
             return None
@@ -733,6 +736,10 @@ def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scena
             return None
         if getattr(getattr(s, section), key) != literal:
             return None
+    if several:
+        return (f"{text}: leaves out filter.cue and control.fallback, so the team starts knowing nothing and hovers "
+                "when it tracks nothing (the model document read literally); `base: swarm-3` at the top of the file "
+                "starts from the preset of several targets instead, and naming either key silences this line")
     return (f"{text}: leaves out filter.cue, fusion.existence and control.fallback, so the team starts knowing "
             "nothing, averages existence and hovers when it tracks nothing (the model document read literally, "
             "as preset paper-fig3-literal, whose team never confirms the target); `base: paper-fig3` at the top "
