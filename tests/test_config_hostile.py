@@ -806,3 +806,10 @@ def test_association_misses_with_one_target_is_warned_about():
     assert any(w.startswith("filter.association_misses: true has no effect with one target") for w in lines)
     assert not [w for w in scenario_warnings(load_scenario("swarm-3", ["filter.association_misses=true"]))
                 if w.startswith("filter.association_misses")]
+
+
+def test_a_long_key_whose_value_is_too_large_is_shortened_in_the_message():
+    # "--set kkk...: nested more than 50 levels deep" echoed the whole key (100 kB)
+    key = "k" * 100_000
+    message = _refused("paper-fig3", [f"{key}={'[' * 60}{']' * 60}"])
+    assert "nested more than" in message and len(message) < 300

@@ -639,7 +639,7 @@ def apply_overrides(data: dict, overrides: list[str] | None) -> dict:
         try:
             parsed = _parse_value(value)
         except TooLarge as err:
-            raise ConfigError(f"--set {key.strip()}: {err}") from None
+            raise ConfigError(f"--set {shortened(key.strip(), SET_SHOWN)}: {err}") from None
         except yaml.YAMLError as err:
             raise ConfigError(f"--set {shortened(item, SET_SHOWN)}: not valid YAML: {_yaml_problem(err)}") from None
         set_dotted(data, key, parsed)
