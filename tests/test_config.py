@@ -372,6 +372,7 @@ def test_a_files_targets_replace_its_bases_target_and_the_other_way_round(tmp_pa
     ("pursit", "base: 'pursit' is not a preset (did you mean pursuit?)"),
     ("3", "base: 3 is not a preset;"),
     ("runs/other.yaml", "base: 'runs/other.yaml' is not a preset;"),
+    ("", "base: null (no value) is not a preset;"),
 ])
 def test_a_base_that_is_not_a_preset_is_one_error_naming_the_file_and_the_key(tmp_path, base, words):
     f = tmp_path / "b.yaml"

@@ -298,6 +298,12 @@ def test_the_held_by_step_counts_are_drawn_from_the_committed_trials_and_agree_w
     for config in range(1, len(h.ROWS) + 1):
         mine = [r for r in trials if r["config"] == config]
         assert int(summary[config]["reacquired"]) == sum("H" in r["classes"][17:] for r in mine)
+        # every trial's row, not a few: the mean of its shares is the summary's, to its 6 figures
+        for key, code in (("held", "H"), ("false_track", "F")):
+            shares = [r["classes"].count(code) / sum(c in "HFM" for c in r["classes"]) for r in mine]
+            assert float(summary[config][f"{key}_mean"]) == float(f"{sum(shares) / len(shares):.6g}"), (config, key)
+        reach = [r["chaser_within_8m"].count("1") / sum(c in "01" for c in r["chaser_within_8m"]) for r in mine]
+        assert float(summary[config]["ceiling_mean"]) == float(f"{sum(reach) / len(reach):.6g}"), config
         assert all(set(r["classes"][13:17]) <= set("SP") for r in mine)  # the occlusion: never detectable
 
     def pooled(config, key, first, last):

@@ -758,7 +758,8 @@ def _based(data: dict, label: str, seen: tuple[str, ...] = ()) -> dict:
     if not isinstance(base, str) or base not in preset_names():
         close = _close_preset(base) if isinstance(base, str) else None
         hint = f" (did you mean {close}?)" if close else ""
-        raise ConfigError(f"{label}: base: {shortened(_shown_value(base), 60)} is not a preset{hint}; base names "
+        shown = "null (no value)" if base is None else shortened(_shown_value(base), 60)
+        raise ConfigError(f"{label}: base: {shown} is not a preset{hint}; base names "
                           f"the built-in preset the file starts from: {', '.join(preset_names())}")
     merged = _preset_data(base, seen)
     merged.pop("name", None)
