@@ -26,10 +26,6 @@ Left out, because no committed file holds them (a one-off run, another seed set,
   86 % and 49 % too) and the n = 1/search against n = 2/hover paired differences (+13 ± 9, ...):
   they were computed from swarm-cv's and swarm-n2-hover's trial files, which are not committed;
 - "about 10 points held, 1 m OSPA" of the first sweep (approximate);
-- "pooled over airborne steps ... the K = 1 cells give 47-60 % where the equal-weight mean gives
-  83-87 %": which cells it spans is not said, and no reading of swarm/'s trial files found gives
-  both ranges (the equal-weight means, summary.csv's held_airborne, of the eight K = 1 cells are
-  83-95 %, of the four swarm-engine ones 84-95 %).
 """
 
 from __future__ import annotations
