@@ -18,7 +18,7 @@ Left out, because no committed file holds them (a one-off run, another seed set,
 - the fail-safe section's runs with `filter.response=null`, hedges and targets without a
   fail-safe: every "without" side and paired difference of the "Measured" table, the hedge table
   but for its no-hedge landing cells (which are the swarm experiment's own trials, held below),
-  the +1.5, +22.1, +35.0, ... differences, the old b2980fa figures, and swarm.md's "22-32 points";
+  the +1.5, +22.1, +35.0, ... differences, the old b2980fa figures, and swarm.md's "21-36 points";
 - the sweeps' wall times and CPU seconds (16 min 19 s, 20 min 59 s, 9 min 33 s, 29 min 58 s,
   1,149 s, ...), the idle rerun of swarm-cv (47 %, 42 %), the earlier swarm run replaced by the
   current one (its 71 and 69 %, +5.5 ± 9.3);
