@@ -324,6 +324,15 @@ def test_the_held_by_step_counts_are_drawn_from_the_committed_trials_and_agree_w
     assert (f"holds the target on {pooled(3, 'held', 1, 13)} of the trial-steps, where a clairvoyant chaser is "
             f"within 8 m of it on {pooled(1, 'chaser_within_8m', 1, 13)}") in readme
     assert f"after it, on {pooled(3, 'held', 18, 30)} against the chaser's {pooled(1, 'chaser_within_8m', 18, 30)}" in readme
+    preset = {k: float(v) for k, v in summary[3].items() if k not in ("label", "solver", "constraints")}
+    from scipy.stats import beta
+
+    k, n = int(preset["reacquired"]), int(preset["reacquired_of"])
+    lo, hi = beta.ppf(0.025, k, n - k + 1), beta.ppf(0.975, k + 1, n - k)
+    assert (f"the preset holds {100 * preset['held_mean']:.1f} ± {100 * preset['held_ci95']:.1f} %, keeps "
+            f"{100 * preset['false_track_mean']:.1f} % false tracks, re-acquires {k} of {n} ({100 * k / n:.0f} %; "
+            f"Clopper-Pearson {100 * lo:.0f}-{100 * hi:.0f} %) and has a mean OSPA of {preset['ospa_mean']:.2f} ± "
+            f"{preset['ospa_ci95']:.2f} m") in readme
 
 
 def test_the_held_by_step_trials_rerun_to_their_committed_rows(tmp_path, monkeypatch):
