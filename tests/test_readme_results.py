@@ -7,12 +7,13 @@ of the digits printed, so a number edited in one place and not the other fails h
 """
 
 import csv
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from readme_tables import NUM, differs_from_rounded, table_at, table_start
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
@@ -38,29 +39,8 @@ def _csv(folder: str, name: str) -> list[dict[str, str]]:
 
 # --- numbers as printed ---------------------------------------------------------------------
 
-NUM = r"[+-]?\d+(?:\.\d+)?(?:e[+-]?\d+)?"
 MEAN_PM = re.compile(rf"({NUM})(?: ± ({NUM}))?")  # "2.63 ± 0.68", "+5.77 ± 2.58", "139"
-
-
-def _unit(printed: str, sig: int | None = None, value: float = 0.0) -> float:
-    """One unit of the last digit of ``printed``: from its decimals ("2.63" -> 0.01, "1.8e-07" ->
-    1e-08), or, for a column printed to ``sig`` significant figures with trailing zeros dropped
-    ("1.5" for 1.50262 at 3), from the magnitude."""
-    if sig is not None and float(printed) != 0:
-        magnitude = math.floor(math.log10(max(abs(float(printed)), abs(value))))
-        return 10.0 ** (magnitude - sig + 1)
-    mantissa, _, exponent = printed.lower().partition("e")
-    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
-    return 10.0 ** (int(exponent or 0) - decimals)
-
-
-def _differs(printed: str, value: float, scale: float = 1.0, sig: int | None = None, sign: int = 1) -> bool:
-    """Whether ``printed`` (on the README's scale: x100 for a share in %, x1000 for ms) is not
-    ``value`` rounded: farther than half a unit of its last digit, plus the CSV's own rounding to
-    6 significant figures."""
-    shown = sign * float(printed) / scale
-    tolerance = 0.5 * _unit(printed, sig, value * scale) / scale + 1e-5 * abs(value) + 1e-15
-    return abs(shown - value) > tolerance
+_differs = differs_from_rounded
 
 
 # --- the tables -----------------------------------------------------------------------------
@@ -130,23 +110,12 @@ LEFT_OUT = [
 
 def _table_start(table: Table) -> int:
     """Where in its section the table (its header line) starts."""
-    text = SECTIONS[table.section]
-    assert text.count(table.anchor) == 1, f"{table.name}: README's {table.section} section lacks {table.anchor!r}"
-    after = text.index(table.anchor)
-    return after + re.search(r"^\|", text[after:], re.M).start()
+    return table_start(SECTIONS[table.section], table.anchor, f"{table.name}: README's {table.section} section")
 
 
 def _table_rows(table: Table) -> tuple[list[str], list[list[str]]]:
     """The header and the rows of the table, each a list of cells."""
-    text = SECTIONS[table.section]
-    lines = []
-    for line in text[_table_start(table):].splitlines():
-        if not line.startswith("|"):
-            break
-        lines.append([cell.strip() for cell in line.strip().strip("|").split("|")])
-    header, separator, *rows = lines
-    assert set("".join(separator)) == {"-"}, f"{table.name}: no markdown table after its anchor"
-    return header, rows
+    return table_at(SECTIONS[table.section], table.anchor, table.name)
 
 
 def _cell_mismatches(table: Table, header: list[str], row: list[str], summary: dict, timing: dict) -> list[str]:

@@ -41,6 +41,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
+from readme_tables import NUM, differs_from_rounded, table_at, table_start
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 EXPERIMENTS = DOCS / "experiments"
@@ -56,23 +58,7 @@ def _csv(folder: str, name: str) -> tuple[dict[str, str], ...]:
 
 # --- numbers as printed: the rule of tests/test_readme_results.py ------------------------------
 
-NUM = r"[+-]?\d+(?:\.\d+)?(?:e[+-]?\d+)?"
-
-
-def _unit(printed: str) -> float:
-    """One unit of the last digit of ``printed`` ("2.63" -> 0.01, "77" -> 1)."""
-    mantissa, _, exponent = printed.lower().partition("e")
-    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
-    return 10.0 ** (int(exponent or 0) - decimals)
-
-
-def _differs(printed: str, value: float, scale: float = 1.0, sign: int = 1) -> bool:
-    """Whether ``printed`` (on the page's scale: x100 for a share in % or points, x1000 for ms) is
-    not ``value`` rounded: farther than half a unit of its last digit, plus the CSV's own rounding
-    to 6 significant figures."""
-    shown = sign * float(printed) / scale
-    tolerance = 0.5 * _unit(printed) / scale + 1e-5 * abs(value) + 1e-15
-    return abs(shown - value) > tolerance
+_differs = differs_from_rounded
 
 
 # the scale each metric is printed at: shares in % (their differences in points), times in ms
@@ -128,21 +114,11 @@ LEFT_OUT = {
 
 
 def _table_start(table: Table) -> int:
-    text = PAGES[table.page]
-    assert text.count(table.anchor) == 1, f"{table.page} lacks (or repeats) {table.anchor!r}"
-    after = text.index(table.anchor)
-    return after + re.search(r"^\|", text[after:], re.M).start()
+    return table_start(PAGES[table.page], table.anchor, table.page)
 
 
 def _table_rows(table: Table) -> tuple[list[str], list[list[str]]]:
-    lines = []
-    for line in PAGES[table.page][_table_start(table):].splitlines():
-        if not line.startswith("|"):
-            break
-        lines.append([cell.strip() for cell in line.strip().strip("|").split("|")])
-    header, separator, *rows = lines
-    assert set("".join(separator)) == {"-"}, f"{table.page}: no markdown table after {table.anchor!r}"
-    return header, rows
+    return table_at(PAGES[table.page], table.anchor, table.page)
 
 
 def test_every_table_of_the_pages_is_held_or_left_out_by_name():
