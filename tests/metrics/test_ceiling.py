@@ -220,3 +220,25 @@ def test_bad_team_arguments_are_refused():
         team_ceiling(np.zeros((2, 3)), np.ones((2, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH)
     with pytest.raises(ValueError, match="true position"):
         team_ceiling(np.full((1, 1, 3), np.nan), np.ones((1, 1), bool), [[0.0, 0, 0]], 5.0, LOW, HIGH)
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_the_share_out_breaks_exact_ties_by_agent_then_target(seed):
+    """Agents and targets on the corners of a 10 m cube: most (agent, target) distances tie
+    exactly (squares of whole numbers), and with 18 pairs or more an unstable sort of them picks
+    other pairs than "ties by agent, then target" (the scalar reference's sorted tuples)."""
+    rng = np.random.default_rng(1000 + seed)
+    N, K = int(rng.integers(6, 9)), int(rng.integers(3, 5))
+    u = 10.0 * rng.integers(0, 2, (N, 3))
+    x = 10.0 * rng.integers(0, 2, (K, 3))
+    assert list(team_goals(u, x)) == reference_goals(u.tolist(), x.tolist())
+
+
+@pytest.mark.parametrize("offset, share", [(NEAR, 1.0), (NEAR + 0.5, 0.0)])
+def test_a_chaser_exactly_d_away_counts_as_near(offset, share):
+    """"Within d" includes d itself: a chaser that cannot move (max_step 0) sits exactly 8 m off
+    (50 - 42, exact in floating point) at every step; 8.5 m off it never counts."""
+    truth = line([50.0] * 3)
+    c = clairvoyant_ceiling(truth, [True] * 3, [[50.0 - offset, 50.0, 50.0]], 0.0, LOW, HIGH)
+    np.testing.assert_array_equal(c.nearest, np.full(3, offset))
+    assert c.share == share
