@@ -15,7 +15,12 @@ from trackjam.control.grasp import (
 )
 from trackjam.control.objective import evaluate
 
-from control_instances import assert_grasp_kernel_follows_its_twin, random_problem, tiny_displacements
+from control_instances import (
+    assert_grasp_kernel_follows_its_twin,
+    random_problem,
+    small_displacements,
+    tiny_displacements,
+)
 
 
 def rngs(seed, n):
@@ -161,3 +166,22 @@ def test_one_agent_follows_its_twin_and_reaches_the_enumerated_optimum(antenna):
         assert value > 0.0  # the agent can see the aim: the optimum is not the silent start
         g = solve_grasp(P, rngs(trial, 1), samples=500, iterations=5)
         assert g.objective == value
+
+
+def test_neighbour_ties_go_to_the_lower_displacement_index(antenna):
+    """The displacement sets are symmetric, so many candidates are exactly as far from a given
+    one (the same distance table as the code, so ties are the code's ties): each list is the
+    ``neighbours`` other candidates first in (distance, index) order, as a plain sorted() of
+    the pairs gives them. An unstable argsort keeps the nearest distances but not the order."""
+    for D, k in ((small_displacements(), 6), (tiny_displacements(), 4), (small_displacements(), 20)):
+        P = random_problem(np.random.default_rng(1), antenna, displacements=D)
+        neigh, n_neigh = neighbour_lists(P, k)
+        for i in range(P.n_agents):
+            n = int(P.n_cand[i])
+            d = P.displacements[P.move[i, :n]]
+            dist = np.linalg.norm(d[:, None, :] - d[None, :, :], axis=-1)
+            assert len(np.unique(dist.round(9))) < n * (n - 1) // 2  # there are ties to break
+            for c in range(n):
+                expected = sorted((j for j in range(n) if j != c), key=lambda j: (dist[c, j], j))[:k]
+                assert n_neigh[i, c] == min(k, n - 1)
+                assert neigh[i, c, : n_neigh[i, c]].tolist() == expected
