@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from trackjam.estimation.lmb_association import (
+    LOG_FLOOR,
     association_marginals,
     best_hypothesis,
     gibbs_hypotheses,
@@ -206,3 +207,36 @@ def test_with_misses_gibbs_keeps_every_hypothesis_it_visited_and_adds_only_real_
     seen = np.array([tuple(g) in held for g in every])
     beta = association_marginals(log_eta, "gibbs", np.random.default_rng(seed), samples=200, misses=True)
     assert np.abs(beta - brute_force_marginals(log_eta)).max() <= 2 * p[~seen].sum() + 1e-12
+
+
+class FixedUniforms:
+    """A generator stand-in whose every uniform is ``u``: the sweeps then take a chosen path."""
+
+    def __init__(self, u: float) -> None:
+        self.u = u
+
+    def random(self, shape):
+        return np.full(shape, self.u)
+
+
+def test_gibbs_sweeps_start_from_the_best_hypothesis():
+    """Two tracks, one measurement: track 0 likely missed, track 1 likely on the measurement, so
+    the best hypothesis is (0, 1). Started there, the first sweep finds the measurement held by
+    track 1 and must leave track 0 undetected; track 1 then draws from (e^-5, 1) with U = 0.999
+    and keeps it. So one sweep visits (0, 1) alone. Started anywhere else (all undetected, say),
+    track 0 would draw from (1, e^-5) with U = 0.999 > 1 / (1 + e^-5) and take the measurement."""
+    log_eta = np.array([[0.0, -5.0], [-5.0, 0.0]])
+    assert 0.999 > 1 / (1 + np.exp(-5.0))
+    hyps = gibbs_hypotheses(log_eta, 1, FixedUniforms(0.999))
+    assert hyps.tolist() == [[0, 1]]
+
+
+def test_marginals_survive_a_spread_of_log_weights_beyond_the_exponents_range():
+    """One track, one measurement, eta = (1, e^-1000): beta = (1, e^-1000) / (1 + e^-1000), i.e.
+    (1, 0) in floating point. The weights must be scaled by the largest (exp(1000) overflows)."""
+    log_eta = np.array([[0.0, -1000.0]])
+    beta = marginals(log_eta, np.array([[0], [1]]))
+    np.testing.assert_array_equal(beta, [[1.0, 0.0]])
+    # the other way round column 0 is floored at LOG_FLOOR = -700: beta = (e^-700, 1) / (1 + e^-700)
+    beta = marginals(np.array([[-1000.0, 0.0]]), np.array([[0], [1]]))
+    np.testing.assert_allclose(beta, [[np.exp(LOG_FLOOR), 1.0]], rtol=1e-12, atol=0)
