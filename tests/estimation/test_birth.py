@@ -199,3 +199,58 @@ def test_a_teammates_detection_is_weighed_by_births_drawn_near_it():
         seen.append(f.update(za, ua, aim_a, level, others=[Scan.of(zb, ub, p1, level, ant)]).existence)
     assert exact > 0.505  # B's detection is evidence: the prior is 0.5
     assert abs(np.mean(seen) - exact) < 0.0025, (np.mean(seen), exact)  # the brute force alone is within about 0.001
+
+
+def test_the_uniform_birth_is_zero_past_every_face_of_the_box():
+    """b's support is the box: a point just past any face, low or high, is outside it, and the
+    importance draw gives weight 0 to the proposal's particles that land there (here a scan
+    Gaussian centred on the high corner, so about 7/8 of them do)."""
+    inside = np.array([[0.0, 0.0, 0.0], [12.0, 12.0, 12.0], [6.0, 6.0, 6.0]])
+    assert B.in_area(inside).all()
+    for k in range(3):
+        for value in (-0.01, 12.01):
+            p = np.full((1, 3), 6.0)
+            p[0, k] = value
+            assert not B.in_area(p)[0], p
+    corner = np.full(3, 12.0)
+    G = Gaussians.of(corner[None], np.eye(3)[None])
+    X, log_w = draw_uniform_birth(np.random.default_rng(5), B, G, 4000, 0.5)
+    outside = ~np.all((X[:, :3] >= 0.0) & (X[:, :3] <= 12.0), axis=1)
+    assert 0.3 < outside.mean() < 0.5  # half from G, 7/8 of those past the corner
+    assert np.all(log_w[outside] == -np.inf) and np.all(np.isfinite(log_w[~outside]))
+    assert np.exp(log_w).sum() == pytest.approx(1.0)
+
+
+def mixed_filter(seed=0):
+    s = load_scenario("paper-fig3", filter__birth="mixed", filter__birth_mix=0.3, filter__particles=500,
+                      filter__birth_particles=400)
+    f = make_filter(s, np.random.default_rng(seed))
+    assert f.e == 0.0 and f.n_mb == 120
+    return s, f
+
+
+def test_a_mixed_birth_predicts_b_itself_from_nothing():
+    """From existence 0 the prediction is all birth, e_{t|t-1} = p_b, and with no scan yet both
+    parts of a mixed b_t are b itself: the predicted mean is the box's centre (the measurement-
+    driven 30 % are 120 draws, so within 0.3 * 29 / sqrt(120) = 0.8 m per axis; 3 m is ~4 sd)
+    and zero velocity, not the parts' weights summed past 1."""
+    s, f = mixed_filter()
+    est = f.predict()
+    assert est.existence == pytest.approx(s.filter.birth_prob, abs=1e-15)
+    centre = (np.asarray(s.area.low) + np.asarray(s.area.high)) / 2
+    np.testing.assert_allclose(est.mean[:3], centre, atol=3.0)
+    np.testing.assert_allclose(est.mean[3:], 0.0, atol=0.3 * s.filter.measurement_birth_speed)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_mixed_birth_scan_that_cannot_detect_leaves_the_existence(seed):
+    """A scan at 0 W detects nothing anywhere: L = 1 for every particle, so the update's
+    evidence is the predicted weights' total, which is 1 only when the blocks' shares (the
+    survivors', the measurement-driven births' p_b-share * mix and the uniform ones' * (1 - mix))
+    add up to 1: e_t = e_{t|t-1}."""
+    _, f = mixed_filter(seed)
+    U0, aim = np.array([10.0, 10.0, 10.0]), np.array([14.0, 13.0, 12.0])
+    for _ in range(3):
+        e_pred = f.predict().existence
+        est = f.update(np.empty((0, 3)), U0, aim, 0.0)
+        assert est.existence == pytest.approx(e_pred, rel=1e-9)
