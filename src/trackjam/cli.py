@@ -228,30 +228,25 @@ def _path_option(option: str, value: str | None, what: str = "folder") -> Path |
     return Path(value)
 
 
-def _load(scenario: str, overrides: list[str] | None, seed: int | None = None, warn: bool = True):
-    """The validated scenario; its suspicious values are warned about, one line each on stderr
-    (with ``warn=False`` the caller does so by :func:`_warn` once its other checks have passed,
-    so that a refused command prints its one error line and nothing else)."""
-    from trackjam.config import load_scenario
+def _load(scenario: str, overrides: list[str] | None, seed: int | None = None):
+    """The validated scenario and the warning ``config.loading.literal_note`` gives for it (or None); the
+    caller warns by :func:`_warn` once its other checks have passed, so that a refused command
+    prints its one error line and nothing else."""
+    from trackjam.config.loading import load_scenario_noted
 
     if seed is not None:  # checked here, else the preset or file was blamed for it
         from trackjam.config.limits import check_seed
 
         check_seed(seed)
     fields = {} if seed is None else {"seed": seed}
-    s = load_scenario(scenario, overrides or [], **fields)
-    if warn:
-        _warn(s, scenario, overrides)
-    return s
+    return load_scenario_noted(scenario, overrides or [], **fields)
 
 
-def _warn(s, scenario: str, overrides: list[str] | None) -> None:
-    """One line on stderr per suspicious but legal value of ``s``, loaded from ``scenario`` with
-    ``overrides`` (a file that leaves out the three practical choices is warned about too)."""
-    from trackjam.config.loading import literal_note
+def _warn(s, note: str | None) -> None:
+    """One line on stderr per suspicious but legal value of ``s``, and ``note`` (the warning for a
+    file that leaves out the three practical choices, :func:`_load`'s) if any."""
     from trackjam.config.warnings import scenario_warnings
 
-    note = literal_note(scenario, overrides, s)
     for line in scenario_warnings(s) + ([note] if note else []):
         typer.echo(f"trackjam: warning: {line}", err=True)
 
@@ -290,9 +285,9 @@ def show_config(
     """Print the fully resolved scenario as YAML."""
     from trackjam.config import scenario_to_yaml
 
-    s = _load(scenario, set_, warn=False)
+    s, note = _load(scenario, set_)
     _runnable(s, set_)  # what `validate` and `run` refuse is not printed as a scenario to run
-    _warn(s, scenario, set_)
+    _warn(s, note)
     typer.echo(scenario_to_yaml(s), nl=False)
 
 
@@ -303,9 +298,9 @@ def validate(
     set_: Optional[list[str]] = typer.Option(None, "--set", metavar="KEY=VALUE", help=SET_HELP),
 ) -> None:
     """Check a scenario (a preset or a file); print `ok` or one line naming the key and the problem."""
-    s = _load(scenario, set_, warn=False)
+    s, note = _load(scenario, set_)
     _runnable(s, set_)
-    _warn(s, scenario, set_)
+    _warn(s, note)
     typer.echo(f"ok: {s.name}, {counted(s.n_agents, 'agent')}, {counted(s.steps, 'step')}")
 
 
@@ -353,14 +348,14 @@ def run(
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
     out = _path_option("--out", out)
-    s = _load(scenario, set_, seed, warn=False)
+    s, note = _load(scenario, set_, seed)
     _runnable(s, set_)
     default = out is None
     out = out or Path("runs") / f"{s.name}-seed{s.seed}"
     from trackjam.simulation.output import check_out_dir
 
     check_out_dir(out, s, default)  # before any work: nothing is computed for a folder we cannot use
-    _warn(s, scenario, set_)  # after every refusal: a refused run prints its one line and nothing else
+    _warn(s, note)  # after every refusal: a refused run prints its one line and nothing else
 
     from rich.console import Console
     from rich.markup import escape

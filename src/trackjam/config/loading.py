@@ -692,6 +692,13 @@ def _shown_value(value: Any) -> str:
 
 def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
     """Raw mapping of a preset name or a file, and a label for messages."""
+    data, label, _ = _scenario_source(name_or_path)
+    return data, label
+
+
+def _scenario_source(name_or_path: str | Path) -> tuple[dict, str, dict | None]:
+    """:func:`load_scenario_data`'s mapping and label, and the file's own mapping as written
+    (before its ``base``; None for a preset), which :func:`literal_note` reads."""
     if not isinstance(name_or_path, (str, os.PathLike)):  # None, 5 or bytes were looked up as file names
         raise ConfigError(f"scenario: a preset name or a path to a YAML/TOML file, got {type(name_or_path).__name__} "
                           f"{shortened(_shown_value(name_or_path), 60)}")
@@ -702,27 +709,22 @@ def load_scenario_data(name_or_path: str | Path) -> tuple[dict, str]:
     if not text:  # Path("") is the current folder: "is a folder" named nothing the user typed
         raise ConfigError(f"{text!r}: an empty scenario name; give a preset (`trackjam presets`) or a YAML/TOML file")
     if isinstance(name_or_path, str) and text in preset_names():
-        return _preset_data(text), f"preset {text}"
-    return _based(_read_file(Path(text)), text), text
+        return _preset_data(text), f"preset {text}", None
+    own = _read_file(Path(text))
+    return _based(own, text), text, own
 
 
 # the three practical choices of `paper-fig3` (README, "Our decisions") and their literal values
 PRACTICAL_CHOICES = (("filter", "cue", None), ("fusion", "existence", "mean"), ("control", "fallback", "hover"))
 
 
-def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scenario) -> str | None:
+def literal_note(own: dict | None, label: str, overrides: list[str] | None, s: Scenario) -> str | None:
     """A warning for a scenario file without ``base`` that leaves all three practical choices to
-    the literal defaults, neither the file nor an override naming one: its team starts knowing
-    nothing and, as `paper-fig3-literal`'s, may never confirm the target. None otherwise (a
-    preset, a file with ``base``, one that names a choice, even at its literal value)."""
-    text = str(name_or_path)
-    if isinstance(name_or_path, str) and text in preset_names():
-        return None
-    try:  # read again: the file was read and validated a moment ago
-        raw = _read_file(Path(text))
-    except (ConfigError, OSError):  # changed since: no warning rather than a second error
-        return None
-    if "base" in raw:
+    the literal defaults, neither the file (``own``, its mapping as written, labelled ``label``)
+    nor an override naming one: its team starts knowing nothing and, as `paper-fig3-literal`'s,
+    may never confirm the target. None otherwise (a preset, whose ``own`` is None, a file with
+    ``base``, one that names a choice, even at its literal value)."""
+    if own is None or "base" in own:
         return None
     set_keys = [item.partition("=")[0].strip() for item in override_items(overrides)]
     # several targets run on the swarm engine, which takes fusion.existence: mean only
@@ -732,15 +734,15 @@ def literal_note(name_or_path: str | Path, overrides: list[str] | None, s: Scena
         dotted = f"{section}.{key}"
         if any(k in (section, dotted) or k.startswith(dotted + ".") for k in set_keys):
             return None
-        if section in raw and not (isinstance(raw[section], dict) and key not in raw[section]):
+        if section in own and not (isinstance(own[section], dict) and key not in own[section]):
             return None
         if getattr(getattr(s, section), key) != literal:
             return None
     if several:
-        return (f"{text}: leaves out filter.cue and control.fallback, so the team starts knowing nothing and hovers "
+        return (f"{label}: leaves out filter.cue and control.fallback, so the team starts knowing nothing and hovers "
                 "when it tracks nothing (the model document read literally); `base: swarm-3` at the top of the file "
                 "starts from the preset of several targets instead, and naming either key silences this line")
-    return (f"{text}: leaves out filter.cue, fusion.existence and control.fallback, so the team starts knowing "
+    return (f"{label}: leaves out filter.cue, fusion.existence and control.fallback, so the team starts knowing "
             "nothing, averages existence and hovers when it tracks nothing (the model document read literally, "
             "as preset paper-fig3-literal, whose team never confirms the target); `base: paper-fig3` at the top "
             "of the file starts from the preset instead, and naming any of the three keys silences this line")
@@ -796,14 +798,24 @@ def load_scenario(
     ``--set`` items, and one wording serves both (the tests and the README quote it).
     """
     overrides = override_items(overrides)
-    data, label = load_scenario_data(name_or_path)
+    return load_scenario_noted(name_or_path, overrides, **fields)[0]
+
+
+def load_scenario_noted(
+    name_or_path: str | Path = "paper-fig3", overrides: list[str] | None = None, **fields: Any
+) -> tuple[Scenario, str | None]:
+    """:func:`load_scenario`, and :func:`literal_note`'s warning for it (None when there is none),
+    from the one reading of the file."""
+    overrides = override_items(overrides)
+    data, label, own = _scenario_source(name_or_path)
     data = apply_overrides(data, overrides)
     blame = overridden_keys(overrides)
     for key, value in fields.items():
         dotted = key.replace("__", ".")
         blame[dotted] = f"load_scenario({printable(shortened(f'{key}={_shown_value(value)}', SET_SHOWN))})"
         set_dotted(data, dotted, value, blame[dotted])
-    return validate_scenario(data, label, blame)
+    s = validate_scenario(data, label, blame)
+    return s, literal_note(own, label, overrides, s)
 
 
 def scenario_to_dict(s: Scenario) -> dict:
