@@ -31,7 +31,6 @@ HERE = Path(__file__).resolve().parent
 TABLE = HERE / "experiments" / NAME / "steps.csv"
 TRIALS_TABLE = HERE / "experiments" / NAME / "trials.csv"
 FIGURE = HERE / "held_by_step.png"
-COLUMNS = ("config", "label", "t", "detectable", "held", "false_track", "chaser_within_8m")
 
 
 def experiment():
@@ -40,8 +39,9 @@ def experiment():
 
 
 def per_step(trial: dict, gate: float, initial: np.ndarray, max_step: float, low, high) -> dict[str, np.ndarray]:
-    """One trial's row of a trial file -> 0/1 per step: detectable, held, false track, and the
-    chaser within 8 m (at detectable steps), recomputed from its per-step series."""
+    """One trial's row of a trial file -> per step: its class (track_quality's codes), and 0/1:
+    detectable, held, false track, and the chaser within 8 m (at detectable steps), recomputed from
+    its per-step series."""
     from trackjam.metrics.ceiling import clairvoyant_ceiling
     from trackjam.metrics.track_quality import FALSE_TRACK, HELD, step_classes
 
@@ -50,7 +50,7 @@ def per_step(trial: dict, gate: float, initial: np.ndarray, max_step: float, low
     classes = step_classes(steps, gate)
     truth = np.stack([steps["truth_x"], steps["truth_y"], steps["truth_z"]], axis=1)
     ceiling = clairvoyant_ceiling(truth, detectable, initial, max_step, low, high)
-    return {"detectable": detectable, "held": classes == HELD, "false_track": classes == FALSE_TRACK,
+    return {"classes": classes, "detectable": detectable, "held": classes == HELD, "false_track": classes == FALSE_TRACK,
             "chaser_within_8m": detectable & (ceiling.nearest <= ceiling.d)}
 
 
@@ -64,7 +64,6 @@ def trial_rows(out: Path, trials: int = TRIALS) -> list[dict]:
     import pyarrow.parquet as pq
 
     from trackjam.config import load_scenario
-    from trackjam.metrics.track_quality import step_classes
 
     s = load_scenario("paper-fig3")
     initial, max_step = np.asarray(s.agents.initial, float), max(s.agents.radial_steps)
@@ -82,9 +81,7 @@ def trial_rows(out: Path, trials: int = TRIALS) -> list[dict]:
                              ("chaser_within_8m", "ceiling_share")):
                 if not np.isclose(mine[k].sum() / n, trial[share], rtol=0, atol=1e-12):
                     raise SystemExit(f"{f}: {k} per step does not give the trial's {share}")
-            steps = {k[len("step."):]: np.asarray(v, dtype=float) for k, v in trial.items() if k.startswith("step.")}
-            steps["target_detectable"] = mine["detectable"]
-            classes = "".join(CODES[c] for c in step_classes(steps, s.metrics.gate))
+            classes = "".join(CODES[c] for c in mine["classes"])
             chaser = "".join("-" if not d else str(int(c)) for d, c in zip(mine["detectable"], mine["chaser_within_8m"]))
             rows.append({"config": config, "trial": int(trial["trial"]), "seed": int(trial["seed"]),
                          "classes": classes, "chaser_within_8m": chaser})
