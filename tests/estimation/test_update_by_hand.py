@@ -96,3 +96,25 @@ def test_a_miss_of_the_whole_filter_is_the_closed_form_when_p_d_is_flat(seed):
         assert e == pytest.approx((1 - p) * e_pred / (1 - e_pred * p), rel=1e-12, abs=1e-15)
         misses += 1
     assert misses == 6
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_scan_at_level_off_leaves_the_whole_filters_existence_on_its_prediction(seed):
+    """Every other scan holds a measurement taken at level off (p_D = 0, every L_i = 1), the
+    others one at full power: the young component born at a detection is drawn again by the
+    two-scan proposal (both its scans hold measurements), and e_t = e_{t|t-1} must still hold,
+    which it does only if the redrawn component keeps its mass."""
+    rng = np.random.default_rng(seed)
+    f = BernoulliFilter(BOX, FLAT, np.random.default_rng(seed), existence=0.6)
+    e = 0.6
+    for t in range(10):
+        e_pred = 0.02 * (1 - e) + 0.98 * e
+        f.predict()
+        d = rng.uniform(0, 10, 3) - U
+        Z = np.array([[np.linalg.norm(d), math.atan2(d[1], d[0]), math.atan2(math.hypot(d[0], d[1]), d[2])]])
+        off = t % 2 == 1
+        young = f._young is not None
+        e = f.update(Z, U, np.full(3, 5.0), 0.0 if off else FLAT.l_max).existence
+        if off:
+            assert young  # the component born at the detection before is weighed (and redrawn)
+            assert e == pytest.approx(e_pred, rel=1e-12)
