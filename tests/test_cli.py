@@ -447,3 +447,15 @@ def test_a_file_of_several_targets_is_pointed_to_a_base_it_can_run_on(tmp_path):
     g.write_text(f"base: {base}\n{targets}")
     r = trackjam("validate", str(g))
     assert r.returncode == 0 and r.stderr == "", r.stderr
+
+
+def test_the_experiment_commands_help_names_every_experiment():
+    """`trackjam experiment --help` lists the experiments by a hand-written text (cli.py loads no
+    experiment to draw its help): an experiment added to EXPERIMENTS must be named there too."""
+    import typer.main
+
+    from trackjam.experiments.definitions import EXPERIMENTS
+
+    command = typer.main.get_command(app).commands["experiment"]
+    name = next(p for p in command.params if p.name == "name")
+    assert name.help.split(" | ") == list(EXPERIMENTS)
