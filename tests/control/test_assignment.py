@@ -216,6 +216,34 @@ def test_registry_repeats_the_one_target_names_and_refuses_unknown_ones(antenna)
         solve_assignment(P, "nope", [])
 
 
+@pytest.mark.parametrize("name, fn, error, words", [
+    (["a"], lambda p, r, o: None, ValueError, "register_assignment: a solver's name must be a non-empty text"),
+    ("", lambda p, r, o: None, ValueError, "register_assignment: a solver's name must be a non-empty text"),
+    ("five-test", 5, TypeError, "register_assignment('five-test'): expected a function"),
+])
+def test_register_assignment_refuses_what_is_not_a_named_function(name, fn, error, words):
+    # as register does a one-target solver: all were taken (a list as "unhashable type"), and a
+    # number failed at the swarm engine's first plan
+    from trackjam.control.assignment import register_assignment
+
+    before = dict(ASSIGNMENT_SOLVERS)
+    with pytest.raises(error) as err:
+        register_assignment(name)(fn)
+    assert str(err.value).startswith(words) and ASSIGNMENT_SOLVERS == before
+
+
+def test_an_assignment_solver_that_returns_no_solution_is_named(antenna):
+    from trackjam.control.assignment import register_assignment
+
+    P = random_assignment(np.random.default_rng(6), antenna, 2, 2, 1)
+    register_assignment("none-test")(lambda problem, rngs, options: None)
+    try:
+        with pytest.raises(TypeError, match="^assignment solver 'none-test' returned NoneType, not an AssignmentSolution$"):
+            solve_assignment(P, "none-test", [])
+    finally:
+        del ASSIGNMENT_SOLVERS["none-test"]
+
+
 def test_bad_problems_are_refused(antenna):
     u, D = np.full((2, 3), 50.0), tiny_displacements()
     with pytest.raises(ValueError, match="objective"):

@@ -37,9 +37,15 @@ ASSIGNMENT_SOLVERS: dict[str, AssignmentSolver] = {}
 
 
 def register_assignment(name: str) -> Callable[[AssignmentSolver], AssignmentSolver]:
-    """Register ``fn`` as the K-target solver called ``name``."""
+    """Register ``fn`` as the K-target solver called ``name`` (a non-empty text, not taken), as
+    :func:`trackjam.control.solve.register` does a one-target solver."""
+    if not isinstance(name, str) or not name.strip():  # 5 and "" were taken, a list was "unhashable type"
+        raise ValueError(f"register_assignment: a solver's name must be a non-empty text, got {name!r:.40}")
 
     def add(fn: AssignmentSolver) -> AssignmentSolver:
+        if not callable(fn):  # 5 was taken, and failed at the swarm's first plan with "'int' object is not callable"
+            raise TypeError(f"register_assignment({name!r}): expected a function (problem, rngs, options) -> "
+                            f"AssignmentSolution, got {type(fn).__name__}")
         if name in ASSIGNMENT_SOLVERS:
             raise ValueError(f"assignment solver {name!r} is registered twice")
         ASSIGNMENT_SOLVERS[name] = fn
@@ -94,4 +100,7 @@ def solve_assignment(problem: AssignmentProblem, solver: str, rngs: Sequence[np.
         raise ValueError(f"rngs: grasp draws from one generator per agent ({problem.n_agents}), got {len(rngs)}")
     if not isinstance(options, SolverOptions):
         raise TypeError(f"options: expected a SolverOptions (SolverOptions(samples=..., ...)), got {type(options).__name__}")
-    return ASSIGNMENT_SOLVERS[solver](problem, rngs, options)
+    solution = ASSIGNMENT_SOLVERS[solver](problem, rngs, options)
+    if not isinstance(solution, AssignmentSolution):  # None failed later, deep in the swarm engine
+        raise TypeError(f"assignment solver {solver!r} returned {type(solution).__name__}, not an AssignmentSolution")
+    return solution
