@@ -47,6 +47,22 @@ def test_a_pool_past_the_machine_is_refused_naming_workers(tmp_path):
     assert not (tmp_path / "e").exists()
 
 
+def test_a_trial_function_the_workers_cannot_import_is_refused_before_out_is_written(tmp_path):
+    # it was a PicklingError traceback at the first trial, with experiment.json and trials/ written
+    from sweep_helpers import fake_trial
+
+    def local(scenario):
+        return fake_trial(scenario)
+
+    for trial, shown in ((lambda s: fake_trial(s), "<lambda>"), (local, "local")):
+        with pytest.raises(TypeError, match=rf"^trial: {re.escape(shown)} of module \S+ cannot be sent to the workers, which import "
+                                            r"it by its module and name: define it at the top level of a module"):
+            run_experiment("constraints", **{**SWEEP, "trial": trial}, workers=2, out=tmp_path / "e")
+        assert not (tmp_path / "e").exists()
+    # one worker is this process: any function runs there
+    run_experiment("constraints", **{**SWEEP, "trial": lambda s: fake_trial(s)}, workers=1, out=tmp_path / "one")
+
+
 def test_the_cli_refuses_a_million_workers_in_one_line(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps", "2",

@@ -16,6 +16,7 @@ import hashlib
 import json
 import math
 import os
+import pickle
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -440,6 +441,7 @@ def run_experiment(
     # numpy's integers are integers (a --seed np.int64(1) was "must be an integer"); JSON takes ints
     trials, steps, seed = (int(v) if isinstance(v, np.integer) else v for v in (trials, steps, seed))
     _check_arguments(trials, steps, seed, workers, scheduler)
+    _check_sendable(trial, workers, scheduler)
     out = Path(out) if out is not None else Path("runs") / f"experiment-{name}"
     scenarios, configurations = _planned(experiment, trials, steps, seed, overrides, workers, scheduler)
     report = make_reporter(progress, experiment, configurations, total=len(scenarios))
@@ -477,6 +479,21 @@ def _check_arguments(trials: int, steps: int, seed: int, workers: int | None, sc
         raise ConfigError("--workers sets the local pool; with --scheduler the cluster's workers run the trials")
     if scheduler is not None:  # an empty one ran the trials locally, without a word
         parse_scheduler_address(scheduler)
+
+
+def _check_sendable(trial: TrialFunction, workers: int | None, scheduler: str | None) -> None:
+    """Refuse, in one line naming it, a trial function the local pool's workers cannot be sent (a
+    lambda, a function defined inside another), which pickle sends by module and name: it was a
+    PicklingError traceback at the first trial, after experiment.json and trials/ were written.
+    This process's own trials (one local worker) take any function, and Dask sends its own way."""
+    if scheduler or (workers or os.cpu_count() or 1) == 1:
+        return
+    try:
+        pickle.dumps(trial)
+    except Exception:  # PicklingError, AttributeError ("Can't pickle local object"), TypeError
+        what = f"{getattr(trial, '__name__', type(trial).__name__)} of module {getattr(trial, '__module__', '?')}"
+        raise TypeError(f"trial: {shortened(what, 80)} cannot be sent to the workers, which import it by its module "
+                        "and name: define it at the top level of a module (or run with workers=1)") from None
 
 
 def _planned(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
