@@ -98,11 +98,41 @@ def test_two_scan_weights_vanish_outside_the_birth_support():
 
 def test_measurement_birth_draws_velocity_within_its_own_speed():
     G = Gaussians.of_scan(h(X_PREV, U)[None], U, SIGMA, inflate=1.0)
-    X, log_w = draw_measurement_birth(np.random.default_rng(3), B, G, 20_000, speed=7.0)
+    wide = UniformBirth(np.full(3, -30.0), np.full(3, 40.0), 3.0)  # no particle near a wall
+    X, log_w = draw_measurement_birth(np.random.default_rng(3), wide, G, 20_000, speed=7.0)
     assert np.abs(X[:, 3:]).max() <= 7.0 and np.abs(X[:, 3:]).max() > 6.9
     # position = a draw around the measurement moved one step by its velocity
     np.testing.assert_allclose((X[:, :3] - X[:, 3:]).mean(axis=0), G.mu[0], atol=0.05)
     np.testing.assert_allclose(np.exp(log_w), 1 / 20_000)
+
+
+def test_measurement_birth_is_truncated_to_the_area():
+    """A detection 1 m from a wall: the untruncated draw puts a third of the births beyond it. The
+    births are the untruncated density restricted to the area (brute force: draw it and keep what
+    is inside), and every one is inside."""
+    near = np.array([1.0, 6.0, 5.5])
+    G = Gaussians.of_scan(h(near, U)[None], U, SIGMA, inflate=1.0)
+    X, log_w = draw_measurement_birth(np.random.default_rng(5), B, G, 40_000, speed=3.0)
+    assert B.in_area(X[:, :3]).all()
+    np.testing.assert_allclose(np.exp(log_w), 1 / 40_000)
+    wide = UniformBirth(np.full(3, -30.0), np.full(3, 40.0), 3.0)
+    Y, _ = draw_measurement_birth(np.random.default_rng(6), wide, G, 400_000, speed=3.0)
+    inside = B.in_area(Y[:, :3])
+    assert 0.25 < 1 - inside.mean() < 0.45  # what the old draw left outside
+    ref = Y[inside]
+    np.testing.assert_allclose(X.mean(axis=0), ref.mean(axis=0), atol=0.03)
+    np.testing.assert_allclose(X.std(axis=0), ref.std(axis=0), rtol=0.02)
+
+
+def test_measurement_birth_beyond_the_area_falls_back_to_the_uniform_birth():
+    """A scan whose only point lies far outside the area (clutter reaches 52 m from an agent):
+    no redraw lands inside, so the births are b's own, with the measurement birth's speed."""
+    far = np.array([40.0, 6.0, 5.5])
+    G = Gaussians.of_scan(h(far, U)[None], U, SIGMA, inflate=1.0)
+    X, _ = draw_measurement_birth(np.random.default_rng(7), B, G, 5_000, speed=5.0)
+    assert B.in_area(X[:, :3]).all()
+    np.testing.assert_allclose(X[:, :3].mean(axis=0), (B.low + B.high) / 2, atol=0.3)  # uniform in the box
+    assert np.abs(X[:, 3:]).max() <= 5.0 and np.abs(X[:, 3:]).max() > 4.9
 
 
 @pytest.mark.parametrize("birth, mix", [("uniform", 0.0), ("measurement", 1.0), ("mixed", 0.3)])

@@ -178,12 +178,30 @@ def redraw_young(rng, b: UniformBirth, G_prev: Gaussians, G_now: Gaussians, k: i
     return X, _normalised(log_w)
 
 
+MEASUREMENT_BIRTH_ROUNDS = 20  # measurement-driven birth: redraws of the particles that left the area
+
+
 def draw_measurement_birth(rng, b: UniformBirth, G_prev: Gaussians | None, k: int, speed: float):
     """``k`` equally weighted particles of the measurement-driven b_t (ours): position from the
-    previous scan's Gaussians, velocity uniform in ±``speed``, moved one step by Eq. (1)'s mean;
-    b's own draws when the previous scan was empty."""
+    previous scan's Gaussians, velocity uniform in ±``speed``, moved one step by Eq. (1)'s mean,
+    truncated to the area (no target is outside it): a particle that lands outside is drawn again,
+    up to ``MEASUREMENT_BIRTH_ROUNDS`` times, then taken from b itself, as are all of them when
+    the previous scan was empty (or held only points whose Gaussians lie outside the area)."""
     if G_prev is None:
         return b.draw(rng, k), np.full(k, -math.log(k))
-    X = b.draw(rng, k, v_b=speed)
-    X[:, :3] = G_prev.sample(rng, k) + DT * X[:, 3:]
+
+    def moved(m: int) -> np.ndarray:
+        Y = b.draw(rng, m, v_b=speed)
+        Y[:, :3] = G_prev.sample(rng, m) + DT * Y[:, 3:]
+        return Y
+
+    X = moved(k)
+    out = ~b.in_area(X[:, :3])
+    for _ in range(MEASUREMENT_BIRTH_ROUNDS):
+        if not out.any():
+            break
+        X[out] = moved(int(out.sum()))
+        out = ~b.in_area(X[:, :3])
+    if out.any():
+        X[out] = b.draw(rng, int(out.sum()), v_b=speed)
     return X, np.full(k, -math.log(k))
