@@ -131,3 +131,25 @@ def test_shown_figures_must_be_among_the_experiments_metrics():
     with pytest.raises(ValueError, match=r"shown names \['ospa_mean'\], which are not among its metrics' keys"):
         Experiment("x", "x", (Configuration(1, "a"),), "x.png", panels=(), metrics=METRICS[:1],
                    shown=(("OSPA", "ospa_mean", "{:.2f} m"),))
+
+
+@pytest.mark.parametrize("name", ["holding", "comms", "oracles"])
+def test_no_axis_label_runs_into_the_title_or_the_tick_labels(name):
+    # panel (b)'s one-line "share of trials (Clopper-Pearson 95%)" was taller than its axes:
+    # in oracles.png it ran into the figure's title and the first slanted configuration name
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    experiment = get_experiment(name)
+    rows = _rows(experiment, means=0.5, ci=0.1)
+    for row in rows:
+        row.update({"reacquired": 1, "reacquired_of": 2, "reacquired_lo": 0.1, "reacquired_hi": 0.9})
+    fig = experiment_figure(experiment, rows)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    title = fig._suptitle.get_window_extent(renderer)
+    ticks = [t.get_window_extent(renderer) for ax in fig.axes for t in ax.get_xticklabels() if t.get_text()]
+    for ax in fig.axes:
+        label = ax.yaxis.label.get_window_extent(renderer)
+        assert not label.overlaps(title), (ax.get_title(), ax.get_ylabel())
+        assert not any(label.overlaps(t) for t in ticks), (ax.get_title(), ax.get_ylabel())

@@ -74,7 +74,7 @@ HOLDING_PANELS = (
     Panel("(a) track quality judged by the truth", "share of detectable steps",
           (("held", "held"), ("false_track", "false track"), ("missed", "missed"),
            ("ceiling", "ceiling: clairvoyant chaser within 8 m")), log=False, ceiling=1.0),
-    Panel("(b) held again after the last hidden spell", "share of trials (Clopper-Pearson 95%)",
+    Panel("(b) held again after the last hidden spell", "share of trials\n(Clopper-Pearson 95%)",
           (("reacquired", None),), ceiling=1.0,
           empty="no trial had a hidden spell\nfollowed by detectable steps"),
     Panel("(c) tracking error", "OSPA [m]", (("ospa", None),)),
