@@ -153,3 +153,28 @@ def test_no_axis_label_runs_into_the_title_or_the_tick_labels(name):
         label = ax.yaxis.label.get_window_extent(renderer)
         assert not label.overlaps(title), (ax.get_title(), ax.get_ylabel())
         assert not any(label.overlaps(t) for t in ticks), (ax.get_title(), ax.get_ylabel())
+
+
+def test_an_ospa_interval_stops_at_the_cut_off_no_ospa_exceeds():
+    # two trials: fig4.png's OSPA bar of 3.2 m had an interval up to 27 m, with c = 10 m
+    experiment = get_experiment("table1")
+    fig = experiment_figure(experiment, _rows(experiment, means=1.0, ci=25.0), ospa_cutoff=10.0)
+    for ax in fig.axes:
+        tops = [np.concatenate([lc.get_segments() for lc in c.lines[2]])[:, :, 1].max()
+                for c in ax.containers if hasattr(c, "lines")]
+        assert max(tops) == pytest.approx(10.0 if ax.get_ylabel() == "OSPA [m]" else 26.0)
+
+
+def test_a_sweep_draws_its_ospa_intervals_up_to_its_scenarios_cut_off(tmp_path, monkeypatch):
+    from trackjam.experiments import figures
+
+    drawn = {}
+    original = figures.write_figure
+
+    def spy(experiment, rows, path, ospa_cutoff=math.inf):
+        drawn["c"] = ospa_cutoff
+        return original(experiment, rows, path, ospa_cutoff)
+
+    monkeypatch.setattr(figures, "write_figure", spy)
+    run_experiment("constraints", workers=1, out=tmp_path, overrides=["metrics.ospa_cutoff=2.5"], **SWEEP)
+    assert drawn["c"] == 2.5

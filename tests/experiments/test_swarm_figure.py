@@ -68,3 +68,12 @@ def test_the_ceiling_is_a_dashed_line_per_team_size_in_the_panels_that_name_it()
         want = {"ceiling": lambda k, n: 0.9 - 0.1 * k, "ceiling50": lambda k, n: 0.8 - 0.01 * n}[with_reference[panel.title]]
         for ln, n in zip(dashed, (3, 4, 5, 6)):
             np.testing.assert_allclose(ln.get_ydata(), [want(k, n) for k in (1, 2, 3, 4)])
+
+
+def test_an_ospa_band_stops_at_the_cut_off():
+    e = get_experiment("swarm")
+    fig = swarm_figure(e, _rows(e, ci=50.0), ospa_cutoff=10.0)
+    for ax, panel in zip(fig.axes, e.panels):
+        if panel.series[0][0] == "ospa":
+            tops = [path.vertices[:, 1].max() for poly in ax.collections for path in poly.get_paths()]
+            assert max(tops) == pytest.approx(10.0)

@@ -459,7 +459,8 @@ def run_experiment(
         records, todo, notes = _resume(folder, experiment, scenarios, report)
         _run_trials(executor, window, trial, name, experiment, scenarios, todo, folder, records, report)
         # still under the lock: a sweep starting now removes no temporary file of these writes
-        return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes)
+        return _finish(out, experiment, configurations, records, ran=len(todo), notes=notes,
+                       ospa_cutoff=_ospa_cutoff(scenarios))
 
 
 RESULT_FILES = ("experiment.json", "summary.csv", "timing.csv", "paired.csv")
@@ -584,8 +585,14 @@ def _check_record(record: Mapping[str, Any], name: str, experiment: Experiment) 
         raise ValueError(f"the trial function returned {wrong[0]} (experiment {name} cannot summarise it)")
 
 
+def _ospa_cutoff(scenarios: Mapping) -> float:
+    """The largest OSPA cut-off c of the sweep's scenarios: no trial's OSPA exceeds it, so the
+    figure's OSPA intervals stop there."""
+    return max((s.metrics.ospa_cutoff for s in scenarios.values()), default=math.inf)
+
+
 def _finish(out: Path, experiment, configurations: list[dict], records: list[Mapping], ran: int,
-            notes: list[str]) -> ExperimentResult:
+            notes: list[str], ospa_cutoff: float = math.inf) -> ExperimentResult:
     """Write summary.csv, timing.csv, paired.csv (where there are pairs) and the figure from
     ``records``, each atomically; one that cannot be written is one line (an OutputError)."""
     from trackjam.experiments.figures import write_figure
@@ -609,7 +616,7 @@ def _finish(out: Path, experiment, configurations: list[dict], records: list[Map
     paired = paired_rows(records, experiment.pairs, experiment.metrics, experiment.counts)  # none without pairs
     if paired:
         put("paired.csv", lambda path: write_table(path, paired))
-    put(experiment.figure, lambda path: atomic_write(path, lambda tmp: write_figure(experiment, summary, tmp)))
+    put(experiment.figure, lambda path: atomic_write(path, lambda tmp: write_figure(experiment, summary, tmp, ospa_cutoff)))
     return ExperimentResult(out, summary, timing, ran, files, notes, paired)
 
 
@@ -640,4 +647,5 @@ def summarise_folder(out: Path | str) -> ExperimentResult:
     if not found:  # tables of NaN, written without a word
         raise ConfigError(f"{out / 'trials'}: no intact trial of this experiment, nothing to summarise"
                           + (f" ({'; '.join(notes)})" if notes else ""))
-    return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes)
+    return _finish(out, experiment, configurations, [found[k] for k in sorted(found)], ran=0, notes=notes,
+                   ospa_cutoff=_ospa_cutoff(scenarios))

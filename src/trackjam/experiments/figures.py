@@ -2,7 +2,8 @@
 bar per configuration and series with its 95 % confidence interval, from summary.csv's rows.
 
 An interval is clipped at its panel's physical bounds (no negative incidents, watts or metres,
-no share above 1): with few trials the t-interval is wide and would otherwise reach past them.
+no share above 1, no OSPA above its cut-off c): with few trials the t-interval is wide and would
+otherwise reach past them.
 """
 
 from __future__ import annotations
@@ -53,8 +54,9 @@ def _series(rows: list[dict[str, Any]], stem: str, floor: float,
     return m, [below, above]
 
 
-def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
-    """The figure of ``experiment`` (its ``panels``) over summary rows ``rows``."""
+def experiment_figure(experiment, rows: list[dict[str, Any]], ospa_cutoff: float = math.inf) -> Figure:
+    """The figure of ``experiment`` (its ``panels``) over summary rows ``rows``; an OSPA
+    interval stops at ``ospa_cutoff``, the c no OSPA exceeds."""
     panels = experiment.panels
     ncols = 2 if len(panels) > 1 else 1
     nrows = math.ceil(len(panels) / ncols)
@@ -68,7 +70,8 @@ def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
         width = 0.8 / len(panel.series)
         values = []
         for i, (stem, legend) in enumerate(panel.series):
-            m, err = _series(rows, stem, panel.floor, panel.ceiling)
+            ceiling = min(panel.ceiling, ospa_cutoff) if stem.startswith("ospa") else panel.ceiling
+            m, err = _series(rows, stem, panel.floor, ceiling)
             offset = (i - (len(panel.series) - 1) / 2) * width
             ax.bar([v + offset for v in x], m, width, yerr=err, capsize=3, label=legend, color=COLOURS.get(stem))
             values += m
@@ -98,11 +101,11 @@ def experiment_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
     return fig
 
 
-def write_figure(experiment, rows: list[dict[str, Any]], path: Path) -> Path:
+def write_figure(experiment, rows: list[dict[str, Any]], path: Path, ospa_cutoff: float = math.inf) -> Path:
     if experiment.figure_style == "lines":
         from trackjam.experiments.swarm_figure import swarm_figure
 
-        swarm_figure(experiment, rows).savefig(path, dpi=120)
+        swarm_figure(experiment, rows, ospa_cutoff).savefig(path, dpi=120)
     else:
-        experiment_figure(experiment, rows).savefig(path, dpi=120)
+        experiment_figure(experiment, rows, ospa_cutoff).savefig(path, dpi=120)
     return path

@@ -2,7 +2,8 @@
 per team size N with its 95 % interval as a band (a panel's further series, the ceiling, dashed),
 and the K = 1 cells of the one-target engine as hollow markers with their intervals beside K = 1.
 
-A band is clipped at the panel's floor (no negative shares, metres or steps), and a share's at 1.
+A band is clipped at the panel's floor (no negative shares, metres or steps), a share's at 1 and
+an OSPA's at its cut-off c.
 """
 
 from __future__ import annotations
@@ -35,8 +36,9 @@ def band(means: list[float], ci95: list[float], floor: float, ceiling: float = m
     return low, high
 
 
-def swarm_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
-    """The figure of the swarm ``experiment`` (its ``panels``, one stem each) over summary rows."""
+def swarm_figure(experiment, rows: list[dict[str, Any]], ospa_cutoff: float = math.inf) -> Figure:
+    """The figure of the swarm ``experiment`` (its ``panels``, one stem each) over summary rows;
+    an OSPA band stops at ``ospa_cutoff``, the c no OSPA exceeds."""
     panels = experiment.panels
     ncols = 3 if len(panels) > 4 else 2
     nrows = math.ceil(len(panels) / ncols)
@@ -48,7 +50,7 @@ def swarm_figure(experiment, rows: list[dict[str, Any]]) -> Figure:
     for ax, panel in zip(axes, panels):
         stem = panel.series[0][0]
         share = panel.ylabel.startswith("share")
-        ceiling = 1.0 if share else math.inf
+        ceiling = 1.0 if share else ospa_cutoff if stem.startswith("ospa") else math.inf
         for n, cells in swarm.items():
             x = [int(r["targets"]) for r in cells]
             m = [_num(r[f"{stem}_mean"]) for r in cells]
