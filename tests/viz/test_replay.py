@@ -3,6 +3,7 @@ a headless Chromium loads without a JavaScript error and renders."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import subprocess
@@ -265,3 +266,13 @@ def test_each_frame_names_and_colours_its_steps_track_quality(run):
         assert f"track quality: {QUALITY_LABELS[names[k]]}" in title
         marker = next(tr for tr in frame["data"] if tr["name"].startswith("reported estimate"))
         assert marker["marker"]["color"] == to_hex(QUALITY_COLOURS[names[k]])  # plotly takes no "0.85" grey
+
+
+def test_the_page_title_names_the_run(tmp_path):
+    # the page had no <title>: a browser's tab and bookmarks read "replay.html" for every run
+    steps, agents, scenario = fake_run()
+    fs = dataclasses.replace(figure_settings(scenario), name="fig3 <b>&</b>")
+    html = write_replay(steps, agents, fs, tmp_path / "replay.html").read_text()
+    head = html[: html.index("</head>")]
+    assert re.findall(r"<title>(.*?)</title>", head) == [
+        f"trackjam replay: fig3 &lt;b&gt;&amp;&lt;/b&gt; (solver {fs.solver})"]

@@ -239,7 +239,12 @@ def write_replay(steps: Columns, agents: Columns, fs: FigureSettings, path: str 
     html = pio.to_html(fig, validate=False, include_plotlyjs=True, include_mathjax=False, full_html=True,
                        auto_play=False, config=dict(displaylogo=False, responsive=True),
                        div_id="trackjam-replay", default_width="100%", default_height="100vh")
-    # the plot fills the window: no page margin, no scroll bar
-    html = html.replace("<head>", "<head><style>html, body {margin: 0; height: 100%; overflow: hidden}</style>", 1)
+    # the plot fills the window: no page margin, no scroll bar; the tab names the run (it had no
+    # <title>, so every replay's tab and bookmark read "replay.html")
+    import html as markup
+
+    title = markup.escape(f"trackjam replay: {fs.name} (solver {fs.solver})")
+    html = html.replace("<head>", f"<head><title>{title}</title>"
+                        "<style>html, body {margin: 0; height: 100%; overflow: hidden}</style>", 1)
     path.write_text(html, encoding="utf-8")
     return path
