@@ -365,3 +365,25 @@ def test_a_text_id_with_dollar_signs_is_drawn_as_written(tmp_path):
     run = simulate(two("steps=2", *ids))
     files = write_run(run, tmp_path / "out")
     assert (tmp_path / "out" / "run.png") in files
+
+
+def test_the_swarm_figure_says_what_its_agent_numbers_and_its_step_axis_are(run, tmp_path, monkeypatch):
+    # run.png of a swarm run numbered each agent's path end without a word, and its time axis was
+    # a bare "step" where the one-target figure says "time step t  (dT = 1 s)"
+    import trackjam.viz.swarm as viz
+    from trackjam.simulation.build import figure_settings
+
+    drawn = []
+    monkeypatch.setattr(viz, "save_figure", lambda fig, path, **kwargs: drawn.append(fig))
+    viz.plot_swarm(run.tables, figure_settings(run.scenario), tmp_path / "run.png")
+    (fig,) = drawn
+    area = fig.axes[0]
+    assert "numbered at their end" in area.get_title()
+    assert [t.get_text() for t in area.texts] == ["1", "2", "3"]  # the three agents' numbers
+    assert fig.axes[-1].get_xlabel() == "time step t  (dT = 1 s)"
+    # each target's path has a marker where it appears, so that its direction shows
+    starts = [(ln.get_xdata()[0], ln.get_ydata()[0]) for ln in area.get_lines() if ln.get_gid() == "target start"]
+    tg = run.tables["targets"]
+    first = [(tg["truth_x"][tg["target"] == k][0], tg["truth_y"][tg["target"] == k][0]) for k in ("a", "b")]
+    np.testing.assert_allclose(starts, first)
+    assert "where a target appears" in [t.get_text() for t in area.get_legend().get_texts()]

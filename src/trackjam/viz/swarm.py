@@ -63,16 +63,21 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
     for k, name in enumerate(ids):
         rows = tg["target"] == name
         top.plot(tg["truth_x"][rows], tg["truth_y"][rows], color=colours[k], lw=2.2, label=f"target {shown[k]}")
+        seen = np.flatnonzero(np.isfinite(tg["truth_x"][rows]))  # where it first appears: its path's direction
+        if len(seen):
+            top.plot(tg["truth_x"][rows][seen[0]], tg["truth_y"][rows][seen[0]], "o", color=colours[k], ms=7,
+                     mec="black", gid="target start")
     hold = np.array([ids.index(x) if x in ids else -1 for x in tr["target"]], dtype=np.int64)
     dot = [colours[h] if h >= 0 else NONE_COLOUR for h in hold]
     top.scatter(tr["est_x"], tr["est_y"], c=dot, s=12, marker="o", edgecolors="none")
     top.scatter([], [], c=NONE_COLOUR, s=12, label="reported tracks (grey: false)")
+    top.plot([], [], "o", color="white", mec="black", ms=7, label="where a target appears")
     top.set_xlim(fs.low[0], fs.high[0])
     top.set_ylim(fs.low[1], fs.high[1])
     top.set_aspect("equal")
     top.set_xlabel("x [m]")
     top.set_ylabel("y [m]")
-    top.set_title(f"{fs.name}: targets, tracks (dots) and agents (black), from above")
+    top.set_title(f"{fs.name}: targets, tracks (dots) and agents (black, numbered at their end), from above")
     top.legend(loc="upper left", fontsize=8)
 
     serve = served_targets(tables, ids)
@@ -95,7 +100,7 @@ def plot_swarm(tables: dict, fs: FigureSettings, path: str | Path) -> Path:
     ax3.plot(t, steps["ospa"], color="black", label="OSPA")
     ax3.plot(t, steps["ospa_card"], color="tab:red", ls="--", label="its cardinality part")
     ax3.set_ylim(0, fs.ospa_cutoff * 1.05)
-    ax3.set_xlabel("step")
+    ax3.set_xlabel("time step t  (dT = 1 s)")
     ax3.set_ylabel(f"OSPA (p={fs.ospa_order:g}, c={fs.ospa_cutoff:g}) [m]")
     ax3.legend(loc="upper left", fontsize=8)
     ax3.set_xlim(0.5, T + 0.5)
