@@ -64,20 +64,43 @@ def experiment_command(
         cells += [f"{row[s]}/{row[f'{s}_of']}" for s, _, _ in experiment.counts]
         table.add_row(str(row["config"]), escape(row["label"]), str(row["trials"]), *cells,
                       f"{1000 * timing['step_s_mean']:.3g}")
-    console = Console(width=220)
+    paired = None
+    if result.paired and len(result.paired) <= MAX_PAIRS_SHOWN:
+        # a count that applies to no trial (no hidden spell in the paper's draw) gets no column
+        applying = tuple(c for c in experiment.counts if any(row[f"{c[0]}_of"] for row in result.summary))
+        paired = paired_table(result, experiment.metrics, units, applying)
+    console = Console(width=_wide_enough(table, *([paired] if paired is not None else [])))
     console.print(table)
-    if result.paired:
-        if len(result.paired) <= MAX_PAIRS_SHOWN:
-            # a count that applies to no trial (no hidden spell in the paper's draw) gets no column
-            applying = tuple(c for c in experiment.counts if any(row[f"{c[0]}_of"] for row in result.summary))
-            console.print(paired_table(result, experiment.metrics, units, applying))
-        else:
-            print(f"{len(result.paired)} paired comparisons in {printable(str(result.out / 'paired.csv'))}")
+    if paired is not None:
+        console.print(paired)
+    elif result.paired:
+        print(f"{len(result.paired)} paired comparisons in {printable(str(result.out / 'paired.csv'))}")
     ran = f"ran {counted(result.ran, 'trial')}" if result.ran else "all trials were already in OUT"
     print(f"{ran}; wrote {', '.join(p.name for p in result.files)} to {printable(str(result.out))}")
 
 
 MAX_PAIRS_SHOWN = 16  # more (the swarm grid's 36) stay in paired.csv
+
+
+def _wide_enough(*tables) -> int:
+    """The closing tables' width: 220 columns, or the least (in steps of 10) at which none of
+    them cuts a word short with an ellipsis (at 220 the swarm experiment's 17 columns had cut
+    'held_airborne' to 'held_airbor…' and 'configuration' to 'configurati…')."""
+    import io
+
+    from rich.console import Console
+
+    widest = max(Console(width=100_000).measure(t).maximum for t in tables)
+    width = 220
+    while width < widest:
+        out = io.StringIO()
+        probe = Console(file=out, width=width, color_system=None)
+        for t in tables:
+            probe.print(t)
+        if "…" not in out.getvalue():
+            break
+        width += 10
+    return width
 
 
 def paired_table(result, metrics, units, counts=()):
