@@ -416,3 +416,58 @@ def test_with_every_message_delivered_every_agent_decides_the_same_x_bar_and_pla
         assert all(v is None for v in aims) or all(np.array_equal(v, aims[0]) for v in aims)
     if preset == "pursuit":  # its own estimates are each agent's own
         assert np.any(np.ptp(by_agent(r, "existence"), axis=1) > 0)
+
+
+def test_greedy_at_its_own_prediction_is_eq_11_as_printed_agent_by_agent(monkeypatch):
+    # control.greedy_aim: own (the paper's Eq. 11): an agent whose own predicted existence exceeds
+    # 0.5 aims at its own predicted mean x_tilde^j, plans alone and applies its own choice, the
+    # argmax of its own p_D there (ties: lower level, then lower move), found here by brute force
+    from trackjam.simulation import team as team_module
+
+    seen = []
+    original = team_module.Team.decide
+
+    def spy(self, displacements, ant, low, high, *args, **kwargs):
+        heard = {j: self.fresh(j) for j in self.working()}
+        out = original(self, displacements, ant, low, high, *args, **kwargs)
+        seen.append((heard, out[0], displacements, ant, low, high))
+        return out
+
+    monkeypatch.setattr(team_module.Team, "decide", spy)
+    # share: scans keeps the agents' own estimates apart (feedback makes them one under posteriors)
+    simulate(load_scenario("paper-fig3", ["steps=10", "filter.particles=500", "filter.birth_particles=100",
+                                          "control.solver=greedy", "control.greedy_aim=own",
+                                          "fusion.share=scans", "antenna.pointing=aim"]))
+    own_steps = apart = 0
+    for heard, decisions, displacements, ant, low, high in seen:
+        aims = []
+        for j, d in enumerate(decisions):
+            mine = next(m for m in heard[j] if m.sender == j)
+            if mine.estimate.existence <= 0.5:
+                continue
+            own_steps += 1
+            np.testing.assert_array_equal(d.aim, np.clip(mine.estimate.mean[:3], low, high))
+            aims.append(d.aim)
+            positions = np.array([m.position for m in heard[j]])
+            p = build_problem(positions, d.aim, displacements, ant, low, high, 1, True)
+            i = [m.sender for m in heard[j]].index(j)
+            best = max(((p.p_d[i, c, level], -level, -c) for c in range(p.n_cand[i]) for level in range(p.n_levels)))
+            assert (d.level, d.move) == (-best[1], int(p.move[i, -best[2]]))
+        apart += len(aims) > 1 and not all(np.array_equal(a, aims[0]) for a in aims)
+    assert own_steps >= 10 and apart >= 1  # the agents did aim at their own, different predictions
+
+
+def test_greedy_aim_is_refused_where_it_cannot_hold_and_warned_where_it_does_nothing():
+    import trackjam
+    from trackjam.config.warnings import scenario_warnings
+    from trackjam.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="control.greedy_aim `own`.*control.plan_over `point`"):
+        load_scenario("paper-fig3", ["control.solver=greedy", "control.greedy_aim=own", "control.plan_over=belief"])
+    lines = scenario_warnings(load_scenario("paper-fig3", ["control.greedy_aim=own"]))
+    assert any(line.startswith("control.greedy_aim: own has no effect under control.solver: grasp") for line in lines)
+    assert not any("greedy_aim" in line for line in scenario_warnings(
+        load_scenario("paper-fig3", ["control.solver=greedy", "control.greedy_aim=own"])))
+    with pytest.raises(ConfigError, match="control.greedy_aim: 'own' is not simulated with several targets"):
+        trackjam.simulation.build.build_swarm(load_scenario("swarm-3", ["control.solver=greedy",
+                                                                      "control.greedy_aim=own"]))

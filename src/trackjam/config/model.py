@@ -525,6 +525,13 @@ class Control(_Model):
     """The joint choice of moves and levels (Sections V-B to V-D)."""
 
     solver: Literal["greedy", "grasp", "exact"] = Field("grasp", description="`greedy` (Eq. 11), `grasp` (the paper, Sec. V-D) or `exact` (ours: the proven optimum of Eqs. 12-13)")
+    greedy_aim: Literal["team", "own"] = Field(
+        "team",
+        description="where `greedy` evaluates each agent's p_D: `team` (ours: the team's x_bar, as the other solvers "
+        "do) or `own` (the paper's Eq. 11: the agent's own predicted mean x_tilde^j when its own predicted existence "
+        "exceeds 0.5, the team's aim otherwise; each agent applies its own choice). Not with `control.plan_over: "
+        "belief`",
+    )
     at_least: Integer(1, MAX_AGENTS) = Field(2, description="n of Xi^N_n: at least n of N agents detect, in [1, N]")
     constraints: StrictBool = Field(True, description="enforce the interference constraints, Eq. (13)")
     grasp: Grasp = Field(default_factory=Grasp, description="GRASP's options (Section V-D)")
@@ -766,6 +773,9 @@ class Scenario(_Model):
             why = "control.solver `greedy` plans" if c.solver == "greedy" else "control.constraints `false` plans"
             raise ValueError(f"control.close_in ({c.close_in:g}): {why} without Eq. (13) already, so there is nothing "
                              "to close in from; leave control.close_in null")
+        if c.greedy_aim == "own" and c.plan_over == "belief":
+            raise ValueError("control.greedy_aim `own` evaluates p_D at each agent's own predicted mean, a point; "
+                             "leave control.plan_over `point` with it")
         lo, hi = self.area.low, self.area.high
         for j, u in enumerate(self.agents.initial):
             if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):

@@ -46,6 +46,9 @@ def scenario_warnings(s: Scenario) -> list[str]:
     if c.belief_samples != samples and c.plan_over != "belief":
         out.append(f"control.belief_samples: {c.belief_samples} has no effect under control.plan_over: {c.plan_over} "
                    "(it is the sample size of the steps planned over the belief)")
+    if c.greedy_aim != "team" and c.solver != "greedy":
+        out.append(f"control.greedy_aim: {c.greedy_aim} has no effect under control.solver: {c.solver} (it is where "
+                   "greedy, Eq. 11, evaluates p_D)")
     if s.oracle is not None and s.oracle != type(s.oracle)() and not any(
             a <= s.steps for t in s.target_list for a, _ in t.occlusions):
         out.append("oracle: has no effect in this run, which has no occlusion (each oracle acts before, during or "

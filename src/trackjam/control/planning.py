@@ -36,6 +36,12 @@ class PlanSettings:
     belief_spread: float | None = None  # control.belief_spread: the belief only while a heard spread exceeds it [m]
     belief_at_least: int | None = None  # control.belief_at_least: n on the steps planned over the belief; None: at_least
     close_in: float | None = None  # control.close_in: below this Xi the team closes in (ours); None: never
+    greedy_aim: str = "team"  # control.greedy_aim: "own" -> greedy at each agent's own x_tilde^j (Eq. 11)
+
+    @property
+    def own_aims(self) -> bool:
+        """Eq. (11) as printed: each agent plans alone at its own predicted mean and applies its own plan."""
+        return self.solver == "greedy" and self.greedy_aim == "own"
 
 
 def position_spread(cov: np.ndarray) -> float:

@@ -252,7 +252,7 @@ def build(s: Scenario) -> Components:
             belief_samples=c.belief_samples if c.plan_over == "belief" else 0,
             belief_spread=None if c.belief_spread is None else float(c.belief_spread),
             belief_at_least=None if c.belief_at_least is None else int(c.belief_at_least),
-            close_in=None if c.close_in is None else float(c.close_in),
+            close_in=None if c.close_in is None else float(c.close_in), greedy_aim=c.greedy_aim,
         ),
         team=TeamSettings(
             existence_rule=s.fusion.existence, feedback=s.fusion.feedback, share=s.fusion.share,
@@ -297,6 +297,7 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
         ("control.plan_over", s.control.plan_over, "point"),
         ("control.belief_at_least", s.control.belief_at_least, None),
         ("control.close_in", s.control.close_in, None),
+        ("control.greedy_aim", s.control.greedy_aim, "team"),
         ("fusion.search_reseed", s.fusion.search_reseed, "always"),
         ("comms.loss", s.comms.loss, 0.0),
         ("comms.delay_steps", s.comms.delay_steps, 0),

@@ -59,7 +59,8 @@ STEPS: tuple[Column, ...] = (
     Column("ospa", "float64", "m", "OSPA(p, c) between the truth set and the estimate set"),
     Column("quality", "str", "", "track quality judged by the truth: held, false_track, missed, phantom, silent"),
     *_xyz("aim", "m", "planning aim x_bar of Eq. (12), moved ahead of the target under `control.lead` / "
-          "`control.horizon`; NaN when no agent believes in the target"),
+          "`control.horizon`; NaN when no agent believes in the target; under `control.greedy_aim: own` the first "
+          "working agent's own"),
     Column("mode", "str", "", "track, search, hover, external or down: the plan the report agent followed"),
     Column("objective", "float64", "", "Xi^N_n of the adopted plan at x_bar; NaN unless tracking"),
     Column("optimal", "bool", "", "the adopted plan is proven optimal"),

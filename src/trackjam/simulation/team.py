@@ -169,7 +169,7 @@ class Team:
         if told is not None:
             x_bars = {j: np.array(told, dtype=float) for j in working}
         else:
-            x_bars = self._planning_aims(working, low, high)
+            x_bars = self._planning_aims(working, low, high, own=plan.own_aims)
         decisions: list[Decision | None] = [None] * len(self.agents)
         for j in range(len(self.agents)):
             if j not in working:
@@ -185,22 +185,31 @@ class Team:
             return decisions, time.perf_counter() - t0
         proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan, t0, told is not None)
         inboxes = self.exchange.send(self.t, "plan", [Message(p.sender, "plan", self.t, plan=p) for p in proposals])
+        own = {p.sender: p for p in proposals}
         for j in working:
-            best = adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
+            # Eq. (11) as printed (greedy_aim: own): each agent applies the plan it made alone
+            best = own[j] if plan.own_aims else adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
             move, level = best.control_of(j)
             objective = best.objective if best.mode == "track" else np.nan
             decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)),
                                     best.optimal, best.gap, best.closed_in)
         return decisions, time.perf_counter() - t0
 
-    def _planning_aims(self, working, low: np.ndarray, high: np.ndarray) -> dict[int, np.ndarray | None]:
+    def _planning_aims(self, working, low: np.ndarray, high: np.ndarray,
+                       own: bool = False) -> dict[int, np.ndarray | None]:
         """Each working agent's x_bar (:func:`pursuit_aim` of the predictions it received this
         step), computed once per distinct inbox: agents that received the same messages (every
-        agent, when none is lost) get the same aim, each its own copy."""
+        agent, when none is lost) get the same aim, each its own copy. ``own`` (Eq. 11 as printed,
+        ``control.greedy_aim: own``): an agent whose own predicted existence exceeds 0.5 aims at its
+        own prediction x_tilde^j instead."""
         aims: dict[tuple[int, ...], np.ndarray | None] = {}
         out = {}
         for j in working:
             heard = self.fresh(j)
+            mine = [m for m in heard if m.sender == j]
+            if own and mine and mine[0].estimate.existence > CONFIRM:
+                out[j] = pursuit_aim([mine[0].estimate], np.array([mine[0].position]), self.settings.aim, low, high)
+                continue
             key = tuple(id(m) for m in heard)  # the same message objects, in the same order
             if key not in aims:
                 aims[key] = pursuit_aim([m.estimate for m in heard], np.array([m.position for m in heard]),
