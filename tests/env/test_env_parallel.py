@@ -123,6 +123,19 @@ def test_a_move_out_of_the_area_hovers_and_says_so():
     assert np.allclose(env.sim.team.agents[1].position, np.array([20, 10, 10]) + D[inside])
 
 
+def test_an_agent_moving_along_a_wall_stays_inside_the_observation_space():
+    # moves along a wall have components of -1e-16 across it: from x = 0 the engine (which admits
+    # 1e-9 m past a wall) put the agent at x = -1.3e-16, and the observation left its Box
+    env = fast_env("agents.initial=[[0,50,50],[20,10,10],[10,15,15]]")
+    env.reset(seed=1)
+    D = env.sim.c.displacements
+    along = int(np.flatnonzero((D[:, 0] < 0) & (D[:, 0] > -1e-9))[0])
+    obs, *_ = env.step({"agent_0": [along, 0], "agent_1": [0, 0], "agent_2": [0, 0]})
+    assert env.sim.team.agents[0].position[0] < 0  # the engine's position, untouched
+    assert obs["agent_0"][0] == 0.0
+    assert all(env.observation_space(a).contains(obs[a]) for a in obs)
+
+
 def test_reward_is_xi_at_the_truth_less_the_penalty_recomputed_from_the_geometry():
     env = fast_env("antenna.pointing=aim", "control.constraints=false", jam_penalty=0.3)
     env.reset(seed=4)

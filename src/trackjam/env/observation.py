@@ -2,7 +2,8 @@
 
 Layout for agent j of a team of N (``observation_layout`` names every entry):
 
-- ``own.x/y/z``: its position u_t after the step's move [m];
+- ``own.x/y/z``: its position u_t after the step's move [m], clipped to the area (the engine
+  admits a position up to 1e-9 m past a wall: float rounding of a move along it);
 - ``own.est.x/y/z/vx/vy/vz``, ``own.est.e``: the estimate its filter holds after the step (with
   ``fusion.feedback``, the fused estimate fed back) [m, m/s] and its existence probability;
 - for each teammate k != j, in index order, what j received from k in the step's first round

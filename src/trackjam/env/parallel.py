@@ -245,8 +245,12 @@ class TrackjamParallelEnv(ParallelEnv):
         sim = self.sim
         n = len(self.possible_agents)
         fraction = sim.t / sim.c.steps
+        # the engine keeps an agent in the area up to 1e-9 m (world/moves.py's in_area): a move along a
+        # wall from x = 0 lands at x = -4e-16, which float32 keeps and the Box's low bound refused
+        low, high = sim.c.low, sim.c.high
         return {
-            a: observe(j, sim.team.agents[j].position, sim.team.agents[j].filter.estimate(), received[j], n, fraction)
+            a: observe(j, np.clip(sim.team.agents[j].position, low, high), sim.team.agents[j].filter.estimate(),
+                       received[j], n, fraction)
             for a, j in ((a, self._index[a]) for a in self.possible_agents)
         }
 
