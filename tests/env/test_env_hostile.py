@@ -195,3 +195,13 @@ def test_a_huge_action_is_named_by_its_shape_not_printed(scenario):
     actions["agent_1"] = np.zeros(10**6, dtype=np.int64)
     with pytest.raises(ValueError, match=r"^agent_1: action an array of shape \(1000000,\) is outside"):
         env.step(actions)
+
+
+def test_a_scenario_with_several_targets_is_refused_by_the_environment():
+    # the engine's message sent the user to SwarmSimulation, which has no environment
+    from trackjam.errors import ConfigError
+
+    s = load_scenario("swarm-3", ["steps=2", "filter.particles=100", "filter.birth_particles=20"])
+    with pytest.raises(ConfigError, match=r"^parallel_env: the learning environment simulates one target; "
+                                          r"this scenario has 3 \(targets\)"):
+        parallel_env(s)

@@ -22,7 +22,7 @@ from pettingzoo import ParallelEnv
 
 from trackjam.arguments import text_path
 from trackjam.control.solve import SOLVERS
-from trackjam.errors import bounded_repr
+from trackjam.errors import ConfigError, bounded_repr
 from trackjam.env.observation import observation_bounds, observe
 from trackjam.env.reward import reward_terms, team_reward
 from trackjam.files import special_file
@@ -80,6 +80,12 @@ class TrackjamParallelEnv(ParallelEnv):
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
                  replay_path: str = "replay.html") -> None:
         is_scenario(scenario)
+        if len(scenario.target_list) > 1:  # the engine's refusal pointed at SwarmSimulation, which has no environment
+            raise ConfigError(
+                f"parallel_env: the learning environment simulates one target; this scenario has "
+                f"{len(scenario.target_list)} (targets). Several targets run through trackjam.simulate or "
+                "'trackjam run', not as an environment"
+            )
         # a penalty past MAX_JAM_PENALTY times the largest violation (about 1.7e4) overflows the reward to -inf
         if (isinstance(jam_penalty, bool) or not isinstance(jam_penalty, (int, float, np.integer, np.floating))
                 or not 0 <= jam_penalty <= MAX_JAM_PENALTY):
