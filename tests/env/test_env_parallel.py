@@ -273,3 +273,65 @@ def test_observation_layout_refuses_what_is_not_a_team_size(n):
         observation_layout(n)
     assert len(observation_layout(np.int64(1))) == 11  # one agent: its own entries and the time
     assert len(observation_layout(64)) == 11 * 64  # the largest team a scenario may have
+
+
+def test_the_action_mask_is_the_moves_that_stay_inside_and_every_level():
+    # agent 0 stands 0.5 m from the wall x = 0: every move with dx < -0.5 is masked, and a masked
+    # move is exactly one the step turns into hovering
+    env = fast_env("agents.initial=[[0.5,50,50],[20,10,10],[10,15,15]]")
+    _, infos = env.reset(seed=1)
+    D, L = env.sim.c.displacements, len(env.sim.c.antenna.levels_w)
+    mask = infos["agent_0"]["action_mask"]
+    assert mask.dtype == bool and mask.shape == (len(D) + L,) and mask[len(D):].all()
+    np.testing.assert_array_equal(mask[: len(D)], 0.5 + D[:, 0] >= -1e-9)  # in_area's tolerance
+    assert 0 < mask[: len(D)].sum() < len(D) and infos["agent_1"]["action_mask"][: len(D)].all()
+    rng = np.random.default_rng(0)
+    policy = random_policy(env, 4)
+    obs = None
+    while env.agents:
+        masks = {a: infos[a]["action_mask"] for a in env.agents}
+        actions = policy(obs)
+        actions["agent_0"] = np.array([rng.integers(len(D)), 0])  # often out of the area near the wall
+        positions = env.sim.team.positions.copy()
+        obs, _, _, _, infos = env.step(actions)
+        for a, j in zip(("agent_0", "agent_1", "agent_2"), range(3)):
+            move = int(np.asarray(actions[a])[0])
+            assert infos[a]["hovered"] == (not masks[a][move])
+            inside = np.all((positions[j] + D >= env.sim.c.low - 1e-9) & (positions[j] + D <= env.sim.c.high + 1e-9), axis=1)
+            np.testing.assert_array_equal(masks[a][: len(D)], inside)
+
+
+@pytest.mark.filterwarnings("ignore:Environment's (minimum|maximum) state space value is")  # estimates are unbounded
+def test_the_global_state_is_the_team_and_the_truth_and_passes_pettingzoo_state_test():
+    from pettingzoo.test.state_test import state_test
+    from pettingzoo.utils.conversions import parallel_to_aec
+
+    from trackjam.env import state_layout
+
+    env = fast_env("steps=20", "target.occlusions=[[3, 4]]")
+    with pytest.raises(RuntimeError, match="state\\(\\) before reset"):
+        env.state()
+    obs, _ = env.reset(seed=3)
+    names = state_layout(3)
+    assert len(names) == 39 == env.state_space.shape[0] and len(set(names)) == 39
+    policy = random_policy(env, 1)
+    hidden = 0
+    while env.agents:
+        obs, _, _, _, _ = env.step(policy(obs))
+        s = dict(zip(names, env.state()))
+        assert env.state_space.contains(env.state())
+        truth = env.sim.truth
+        assert s["target.exists"] == truth.exists and s["target.detectable"] == truth.detectable
+        hidden += truth.exists and not truth.detectable
+        np.testing.assert_allclose([s[f"target.{k}"] for k in ("x", "y", "z", "vx", "vy", "vz")], truth.state, rtol=1e-6)
+        for k, agent in enumerate(env.sim.team.agents):
+            np.testing.assert_allclose([s[f"agent{k}.{c}"] for c in "xyz"], agent.position, atol=1e-5)
+            est = agent.filter.estimate()
+            np.testing.assert_allclose(s[f"agent{k}.est.e"], est.existence, rtol=1e-6)
+            np.testing.assert_allclose([s[f"agent{k}.est.{c}"] for c in ("x", "vz")], est.mean[[0, 5]], rtol=1e-5)
+        assert s["time"] == pytest.approx(env.sim.t / 20)
+    assert hidden == 2  # the occluded steps 3 and 4: present, not detectable
+    state_test(parallel_to_aec(fast_env()), fast_env())
+    env.close()
+    with pytest.raises(RuntimeError, match="state\\(\\) after close"):
+        env.state()

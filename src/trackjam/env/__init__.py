@@ -11,7 +11,7 @@ try:
 except ImportError as err:  # pragma: no cover - depends on the installation
     raise ImportError(f"trackjam.env needs the env extra: pip install \".[env]\" from the trackjam checkout ({err})") from None
 
-from trackjam.env.observation import observation_layout
+from trackjam.env.observation import observation_layout, state_layout
 from trackjam.env.parallel import Planned, TrackjamParallelEnv
 from trackjam.env.policies import random_policy, rollout, solver_policy
 
@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads i
     from trackjam.simulation.build import Scenario
 
 __all__ = ["Planned", "TrackjamParallelEnv", "observation_layout", "parallel_env", "random_policy", "rollout",
-           "solver_policy"]
+           "solver_policy", "state_layout"]
 
 
 def parallel_env(scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,

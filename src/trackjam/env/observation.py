@@ -13,6 +13,13 @@ Layout for agent j of a team of N (``observation_layout`` names every entry):
 - ``time``: t / steps, the share of the episode elapsed.
 
 N agents observe 11 N numbers each.
+
+The global state (``state_layout``; ``TrackjamParallelEnv.state()``, for a centralised critic: no
+agent observes it) holds, for every agent k in index order, ``agentK.x/y/z`` (its position [m],
+clipped to the area as above), ``agentK.est.x/y/z/vx/vy/vz`` and ``agentK.est.e`` (its filter's
+estimate and existence), then the truth: ``target.x/y/z/vx/vy/vz`` [m, m/s] (0 while the target
+does not exist), ``target.exists``, ``target.detectable`` (it exists and is not occluded), and
+``time``: 10 N + 9 numbers.
 """
 
 from __future__ import annotations
@@ -51,6 +58,50 @@ def observation_bounds(n_agents: int, low: np.ndarray, high: np.ndarray) -> tupl
         if name.endswith((".e", ".received")) or name == "time":
             lo[i], hi[i] = 0.0, 1.0
     return lo, hi
+
+
+def state_layout(n_agents: int) -> list[str]:
+    """The name of every entry of the global state, for a team of ``n_agents`` in [1, MAX_AGENTS]."""
+    observation_layout(n_agents)  # the same check of n_agents
+    names = []
+    for k in range(n_agents):
+        names += [f"agent{k}.x", f"agent{k}.y", f"agent{k}.z"] + [f"agent{k}.est.{s}" for s in STATE]
+        names.append(f"agent{k}.est.e")
+    return names + [f"target.{s}" for s in STATE] + ["target.exists", "target.detectable", "time"]
+
+
+def state_bounds(n_agents: int, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Box bounds of the global state: the agents' positions in the area; existence, flags and
+    time in [0, 1]; estimates and the truth unbounded (a target under ``walls: leave`` is last
+    seen past a wall)."""
+    names = state_layout(n_agents)
+    lo = np.full(len(names), -np.inf, dtype=np.float32)
+    hi = np.full(len(names), np.inf, dtype=np.float32)
+    for k in range(n_agents):
+        lo[10 * k : 10 * k + 3], hi[10 * k : 10 * k + 3] = low, high
+    for i, name in enumerate(names):
+        if name.endswith((".e", ".exists", ".detectable")) or name == "time":
+            lo[i], hi[i] = 0.0, 1.0
+    return lo, hi
+
+
+def global_state(positions: np.ndarray, estimates: list, truth_state: np.ndarray | None, exists: bool,
+                 detectable: bool, fraction: float) -> np.ndarray:
+    """The global state of :func:`state_layout`: ``positions`` (N, 3) clipped to the area,
+    ``estimates`` each agent's filter Estimate, the true target's state (None while it does
+    not exist)."""
+    n = len(positions)
+    out = np.zeros(10 * n + 9, dtype=np.float32)
+    for k, (u, est) in enumerate(zip(positions, estimates)):
+        out[10 * k : 10 * k + 3] = u
+        out[10 * k + 3 : 10 * k + 9] = est.mean
+        out[10 * k + 9] = est.existence
+    if truth_state is not None:
+        out[10 * n : 10 * n + 6] = truth_state
+    out[10 * n + 6] = float(exists)
+    out[10 * n + 7] = float(detectable)
+    out[-1] = fraction
+    return out
 
 
 def observe(j: int, position: np.ndarray, own, received: list, n_agents: int, fraction: float) -> np.ndarray:

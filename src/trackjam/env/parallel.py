@@ -23,7 +23,7 @@ from pettingzoo import ParallelEnv
 from trackjam.arguments import text_path
 from trackjam.control.solve import SOLVERS
 from trackjam.errors import ConfigError, bounded_repr
-from trackjam.env.observation import observation_bounds, observe
+from trackjam.env.observation import global_state, observation_bounds, observe, state_bounds
 from trackjam.env.reward import reward_terms, team_reward
 from trackjam.files import special_file
 from trackjam.simulation.build import figure_settings, is_scenario, solver_allowed, with_seed
@@ -107,6 +107,7 @@ class TrackjamParallelEnv(ParallelEnv):
         lo, hi = observation_bounds(c.n_agents, c.low, c.high)
         self.action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
         self.observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
+        self.state_space = spaces.Box(*state_bounds(c.n_agents, c.low, c.high), dtype=np.float32)
         self._seed: int | None = None
         self._solvers_ok: set[str] = set()
         self._ended: str | None = NOT_STARTED
@@ -157,7 +158,31 @@ class TrackjamParallelEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         self._ended = None
         obs = self._observations(received=[[] for _ in self.possible_agents])
-        return obs, {a: {"t": 0, "seed": self._seed} for a in self.agents}
+        return obs, {a: {"t": 0, "seed": self._seed, "action_mask": self._action_mask(self._index[a])}
+                     for a in self.agents}
+
+    def state(self) -> np.ndarray:
+        """The global state, for a centralised critic (``trackjam.env.state_layout`` names its
+        entries): every agent's position and filter estimate, the true target's state, whether
+        it exists and is detectable, and the time. No agent observes it."""
+        if self._ended == NOT_STARTED:
+            raise RuntimeError("state() before reset(): call reset() to start an episode")
+        if self._ended == CLOSED:
+            raise RuntimeError("state() after close(): call reset() to start a new episode")
+        sim = self.sim
+        truth = sim.truth
+        positions = np.clip(sim.team.positions, sim.c.low, sim.c.high)
+        estimates = [a.filter.estimate() for a in sim.team.agents]
+        return global_state(positions, estimates, truth.state if truth.exists else None, truth.exists,
+                            truth.detectable, sim.t / sim.c.steps)
+
+    def _action_mask(self, j: int) -> np.ndarray:
+        """Agent j's action mask, MultiDiscrete-style: the moves (``len(displacements)`` entries)
+        that keep it inside the area from where it stands, then every level (the interference
+        limit of Eq. 13 is left to the reward)."""
+        c = self.sim.c
+        moves = admissible_moves(self.sim.team.agents[j].position, c.displacements, c.low, c.high)
+        return np.concatenate([moves, np.ones(len(c.antenna.levels_w), dtype=bool)])
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
         if self._ended == NOT_STARTED:
@@ -238,6 +263,7 @@ class TrackjamParallelEnv(ParallelEnv):
                 "t": record.t, "move": int(moves[j]), "level": int(ag["level_index"][j]), "hovered": bool(hovered[j]),
                 "p_d": float(ag["p_d"][j]), "interference_w": float(ag["interference_w"][j]),
                 "jammed": bool(ag["jammed"][j]), "violation": float(v[j]), "xi": xi, "mode": str(ag["mode"][j]),
+                "action_mask": self._action_mask(j),
                 **({"end": self._ended} if (terminated or truncated) else {}),
             }
             for a, j in ((a, self._index[a]) for a in live)
