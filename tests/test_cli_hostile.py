@@ -742,3 +742,33 @@ def test_a_team_that_never_transmits_is_warned_about(tmp_path):
     assert "trackjam: warning: the team never transmitted (mean transmit power 0 W)" in r.stderr
     ok = _trackjam("run", "paper-fig3", "--set", "steps=2", "--no-figures", "--out", str(tmp_path / "ok"))
     assert ok.returncode == 0 and "never transmitted" not in ok.stderr
+
+
+@pytest.mark.parametrize("where", ["simulate", "plot_run"])
+def test_an_error_a_sigterm_caused_is_said_as_a_sigterm(tmp_path, where):
+    """A SIGTERM (or SIGHUP) while a compiled module of matplotlib loads surfaces as "ImportError:
+    initialization failed" chained from the handler's SystemExit(143), as a Ctrl-C there does from
+    its KeyboardInterrupt: `kill -HUP` at the start of a run's writing was a traceback of 60 lines
+    and exit status 1. It is the one line and status 143, whether it came while stepping or while
+    writing (an earlier run in the folder kept whole)."""
+    out = tmp_path / "r"
+    target = "trackjam.simulation.loop.simulate" if where == "simulate" else "trackjam.viz.figure.plot_run"
+    module, name = target.rsplit(".", 1)
+    code = textwrap.dedent(f"""
+        import sys, importlib
+        def terminated_import(*args, **kwargs):
+            try:
+                raise SystemExit(143)
+            except SystemExit as err:
+                raise ImportError("initialization failed") from err
+        setattr(importlib.import_module({module!r}), {name!r}, terminated_import)
+        from trackjam.console import main
+        sys.argv = ["trackjam", "run", "paper-fig3", "--set", "steps=1", "--set", "target.occlusions=[]",
+                    "--set", "control.solver=exact", "--out", {str(out)!r}]
+        main()
+    """)
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 143, p.stderr
+    said = "trackjam: terminated" if where == "simulate" else f"trackjam: terminated while writing {out}; nothing was written"
+    assert p.stderr.strip().splitlines() == [said]
+    assert not out.exists()

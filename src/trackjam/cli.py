@@ -160,12 +160,16 @@ def user_errors(fn: Callable) -> Callable:
                 raise
             _say_interrupted(err)
         except Exception as err:
-            # an error a Ctrl-C caused: one that landed while matplotlib's compiled module was
-            # loading surfaced as "ImportError: initialization failed", a traceback (typer's Exit
-            # of a Ctrl-C already said is no such error)
-            if isinstance(err, (typer.Exit, typer.Abort)) or not interrupted(err):
+            # an error a Ctrl-C or a SIGTERM caused: one that landed while matplotlib's compiled
+            # module was loading surfaced as "ImportError: initialization failed", a traceback
+            # (typer's Exit of a Ctrl-C already said is no such error)
+            if isinstance(err, (typer.Exit, typer.Abort)):
                 raise
-            _say_interrupted(err)
+            if interrupted(err):
+                _say_interrupted(err)
+            if _terminated_by(err) is None:
+                raise
+            _say_terminated(err, "trackjam: terminated")
 
     return wrapper
 
@@ -188,6 +192,31 @@ def _say_interrupted(err: BaseException) -> None:
                 pass
         os._exit(130)
     raise typer.Exit(130)
+
+
+def _say_terminated(err: BaseException, line: str) -> None:
+    """The one ``line`` of a SIGTERM (or SIGHUP) and exit status 143, for an error the signal's
+    SystemExit caused; like :func:`_say_interrupted`, the process ends at once when the signal
+    landed in the import of a compiled module."""
+    global _said_terminated
+    _said_terminated = True
+    typer.echo(line, err=True)
+    if _cause(err, ImportError) is not None:
+        import os
+
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(TERMINATED)
+    raise SystemExit(TERMINATED) from None
+
+
+def _terminated_by(err: BaseException) -> BaseException | None:
+    """The SIGTERM (the SystemExit(143) of its handler) in ``err``'s chain, or None."""
+    ended = _cause(err, SystemExit)
+    return ended if ended is not None and ended.code == TERMINATED else None
 
 
 def _cause(err: BaseException, kind: type) -> BaseException | None:
@@ -379,20 +408,25 @@ def run(
 
     try:
         files = write_run(result, out, figures=figures, on_wait=waiting)
-    except (KeyboardInterrupt, SystemExit) as err:  # one line, saying what the folder holds now
-        if isinstance(err, SystemExit) and err.code != TERMINATED:
+    except BaseException as err:  # a Ctrl-C or SIGTERM: one line, saying what the folder holds now
+        # (or an error one caused: an ImportError when it landed while matplotlib's compiled module loaded)
+        if not isinstance(err, KeyboardInterrupt) and _terminated_by(err) is None:
             raise
         global _said_interrupted, _said_terminated
         how = "interrupted" if isinstance(err, KeyboardInterrupt) else "terminated"
         if getattr(err, WROTE, False):  # it came while the last renames held it back: the run is there
-            typer.echo(f"trackjam: {how} after writing {printable(str(out))} in full", err=True)
+            line = f"trackjam: {how} after writing {printable(str(out))} in full"
         elif existed:  # else the write removed the folders it made
-            typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing in it was changed", err=True)
+            line = f"trackjam: {how} while writing {printable(str(out))}; nothing in it was changed"
         else:
-            typer.echo(f"trackjam: {how} while writing {printable(str(out))}; nothing was written", err=True)
-        if isinstance(err, SystemExit):
-            _said_terminated = True
-            raise
+            line = f"trackjam: {how} while writing {printable(str(out))}; nothing was written"
+        if not isinstance(err, KeyboardInterrupt):
+            if isinstance(err, SystemExit):
+                _said_terminated = True
+                typer.echo(line, err=True)
+                raise
+            _say_terminated(err, line)
+        typer.echo(line, err=True)
         _said_interrupted = True
         raise typer.Exit(130) from None
     m = result.summary
