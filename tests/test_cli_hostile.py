@@ -111,6 +111,53 @@ def test_a_path_past_the_systems_whole_length_is_named_by_its_option(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def _fits_but_not_its_files(tmp_path: Path, length: int) -> str:
+    """A path of ``length`` bytes, under the system's 4096, of names of 200 bytes at most."""
+    head = len(str(tmp_path)) + 1
+    names, left = [], length - head
+    while left > 201:
+        names.append("d" * 200)
+        left -= 201
+    return str(tmp_path / "/".join([*names, "e" * left]))
+
+
+@pytest.mark.parametrize("args, under", [
+    (["run", "paper-fig3", "--set", "steps=2", "--no-figures"], 52),
+    (["experiment", "constraints", "--trials", "1", "--steps", "2", "--workers", "1"], 51),
+])
+def test_an_out_that_fits_but_whose_files_would_not_is_refused_before_the_work(tmp_path, args, under):
+    # an --out of 4060 bytes passed the check, and the run's files in its staging folder (52 bytes
+    # more) failed with "File name too long" once every step was done, in a line of 8 kB; a sweep
+    # left experiment.json and an empty trials/ and failed at its first trial
+    out = _fits_but_not_its_files(tmp_path, 4060)
+    r = _trackjam(*args, "--out", out)
+    line = _one_line(r)
+    assert len(line) < 300 and r.stdout == ""
+    assert line.endswith(f": too long for the file system: the files written in it would have a path of "
+                         f"{4060 + under} bytes, past its 4095")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_longest_paths_checked_are_those_written():
+    from trackjam.cli import EXPERIMENT_UNDER, RUN_UNDER
+    from trackjam.experiments.summary import trial_filename
+    from trackjam.files import TEMP_MARK, temporary_beside
+    from trackjam.simulation.output import RUN_FILES, STAGING
+
+    assert RUN_UNDER == f"{STAGING}{'x' * 8}{TEMP_MARK}/{max(RUN_FILES, key=len)}"
+    assert EXPERIMENT_UNDER == f"trials/{temporary_beside(Path(trial_filename(20000, 20000))).name}"
+
+
+def test_a_bench_json_name_whose_temporary_name_would_not_fit_is_refused_before_the_benchmarks(tmp_path):
+    # 245 bytes fit, but atomic_write's temporary name .NAME.XXXXXXXX.tmp.json (269) did not:
+    # every benchmark ran, then the write failed
+    given = str(tmp_path / ("a" * 240 + ".json"))
+    r = _trackjam("bench", "--only", "filter", "--quick", "--json", given)
+    assert _one_line(r).endswith(": too long for the file system: its temporary file (written first) would "
+                                 "have a name of 264 bytes, past its 255")
+    assert r.stdout == "" and list(tmp_path.iterdir()) == []
+
+
 def test_a_newline_in_out_stays_in_the_one_line_that_says_what_was_written(tmp_path):
     out = tmp_path / "new\nline"
     r = _trackjam("run", "paper-fig3", "--set", "steps=2", "--no-figures", "--out", str(out))

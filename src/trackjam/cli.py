@@ -238,9 +238,19 @@ def interrupted(err: BaseException) -> bool:
     return _cause(err, KeyboardInterrupt) is not None
 
 
-def _path_option(option: str, value: str | None, what: str = "folder") -> Path | None:
+# the longest paths a command writes under its --out (checked with --out itself, before any work):
+# a run's file in its staging folder (trackjam.simulation.output's STAGING, mkdtemp's 8 random
+# characters, its longest file name), a sweep's trial file's temporary name (at most 20,000 runs:
+# configuration and trial numbers of 5 digits at most)
+RUN_UNDER = ".trackjam-staging.xxxxxxxx.tmp/measurements.parquet"
+EXPERIMENT_UNDER = "trials/.c20000-t20000.parquet.xxxxxxxx.tmp.parquet"
+
+
+def _path_option(option: str, value: str | None, what: str = "folder", under: str | None = None) -> Path | None:
     """The path an option names; an empty one is refused (``Path("")`` is the current folder, into
-    which `--out ''` wrote a run's files without a word). ``what`` the option names: a folder or a file."""
+    which `--out ''` wrote a run's files without a word). ``what`` the option names: a folder or a file.
+    ``under``: the longest path the command writes in the folder (relative), or for a file None,
+    its temporary name: one the system cannot hold is refused too, before any work."""
     if value is None:
         return None
     if not value:
@@ -248,9 +258,10 @@ def _path_option(option: str, value: str | None, what: str = "folder") -> Path |
 
         default = f", or drop {option} for the default one" if what == "folder" else ""
         raise ConfigError(f"{option} '': an empty path; name a {what}{default}")
-    from trackjam.files import too_long
+    from trackjam.files import temporary_beside, too_long
 
-    if why := too_long(Path(value)):
+    made = Path(value) / under if under is not None else temporary_beside(Path(value)) if what == "file" else None
+    if why := too_long(Path(value), made):
         from trackjam.errors import ConfigError, ends
 
         raise ConfigError(f"{option} {ends(value)}: {why}")
@@ -376,7 +387,7 @@ def run(
     figures: bool = typer.Option(True, "--figures/--no-figures", help="Write run.png and replay.html."),
 ) -> None:
     """Run one scenario end to end and write its logs, figure and 3D replay."""
-    out = _path_option("--out", out)
+    out = _path_option("--out", out, under=RUN_UNDER)
     s, note = _load(scenario, set_, seed)
     _runnable(s, set_)
     default = out is None
@@ -534,7 +545,7 @@ def experiment(
     """Run a Monte Carlo experiment, the paper's (table1, constraints) or ours (resumable; local pool or Dask)."""
     from trackjam.experiments.cli import experiment_command
 
-    out = _path_option("--out", out)
+    out = _path_option("--out", out, under=EXPERIMENT_UNDER)
     experiment_command(
         name=name,
         trials=trials,

@@ -18,9 +18,24 @@ TEMP_MARK = ".tmp"
 NAME_MAX, PATH_MAX = 255, 4096  # bytes of one name and of a whole path (Linux's; the name's from os.pathconf where it answers)
 
 
-def too_long(path: Path) -> str | None:
+def too_long(path: Path, made: Path | None = None) -> str | None:
     """Why the system cannot hold ``path`` (a name past NAME_MAX bytes, or the whole past
-    PATH_MAX: even Path.exists() raises on them), for a message; None when it can."""
+    PATH_MAX: even Path.exists() raises on them), for a message; None when it can. ``made``: the
+    longest path the command will make for it (a file in a folder's staging folder, a temporary
+    name beside a file), checked too: a path that fits but whose files would not failed once the
+    work was done (a run's last step, minutes of benchmarks), in a line of 8 kB."""
+    if past := _past_limits(path):
+        kind, n, limit = past
+        return f"too long for the file system: {'a name of ' if kind == 'name' else ''}{n} bytes{' in all' if kind == 'path' else ''}, past its {limit}"
+    if made is not None and (past := _past_limits(made)):
+        kind, n, limit = past
+        what = "the files written in it" if path in made.parents else "its temporary file (written first)"
+        return f"too long for the file system: {what} would have a {kind} of {n} bytes, past its {limit}"
+    return None
+
+
+def _past_limits(path: Path) -> tuple[str, int, int] | None:
+    """("name", bytes, NAME_MAX) or ("path", bytes, PATH_MAX - 1) of a ``path`` the system cannot hold."""
     text = os.fsencode(os.path.abspath(path))
     try:
         name_max = os.pathconf("/", "PC_NAME_MAX")
@@ -28,10 +43,17 @@ def too_long(path: Path) -> str | None:
         name_max = NAME_MAX
     longest = max(len(part) for part in text.split(b"/"))
     if longest > name_max:
-        return f"too long for the file system: a name of {longest} bytes, past its {name_max}"
+        return "name", longest, name_max
     if len(text) >= PATH_MAX:
-        return f"too long for the file system: {len(text)} bytes in all, past its {PATH_MAX - 1}"
+        return "path", len(text), PATH_MAX - 1
     return None
+
+
+def temporary_beside(path: Path) -> Path:
+    """The longest name :func:`atomic_write` gives the temporary file of ``path`` (mkstemp's
+    random part is 8 characters)."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.{'x' * 8}{TEMP_MARK}{path.suffix}")
 
 
 def existing_folder(path: Path, where: str) -> Path:
