@@ -104,9 +104,11 @@ def test_unknown_bench_group_exits_2():
     assert r.exit_code == 2
 
 
-@pytest.mark.parametrize("where, words", [("folder", "is a folder"), ("missing/b.json", "is not an existing folder")])
+@pytest.mark.parametrize("where, words", [("folder", "is a folder"), ("missing/b.json", "is not an existing folder"),
+                                         ("afile/b.json", "afile is a file, not a folder")])
 def test_a_bad_json_path_is_refused_before_any_benchmark(tmp_path, where, words):
     (tmp_path / "folder").mkdir()
+    (tmp_path / "afile").write_text("a user's file")
     r = CliRunner().invoke(app, ["bench", "--quick", "--only", "filter", "--json", str(tmp_path / where)])
     assert r.exit_code == 2 and words in r.output and "running" not in r.output
 

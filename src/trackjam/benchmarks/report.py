@@ -162,7 +162,9 @@ def run_benchmarks(quick: bool = False, json_out: Path | None = None, only: list
             raise ConfigError(f"--json {json_out}: exists and is not an earlier `trackjam bench --json` file; "
                               "choose another name")
         if not json_out.absolute().parent.is_dir():
-            raise ConfigError(f"--json {json_out}: {json_out.absolute().parent} is not an existing folder")
+            parent = json_out.absolute().parent
+            what = "is a file, not a folder" if parent.exists() else "is not an existing folder"
+            raise ConfigError(f"--json {json_out}: {parent} {what}")
         check_writable(json_out.absolute().parent, f"--json {json_out}")
     results = {"machine": machine(), "quick": quick}
     print(f"machine: {results['machine']}", flush=True)
