@@ -185,8 +185,10 @@ def draw_measurement_birth(rng, b: UniformBirth, G_prev: Gaussians | None, k: in
     """``k`` equally weighted particles of the measurement-driven b_t (ours): position from the
     previous scan's Gaussians, velocity uniform in ±``speed``, moved one step by Eq. (1)'s mean,
     truncated to the area (no target is outside it): a particle that lands outside is drawn again,
-    up to ``MEASUREMENT_BIRTH_ROUNDS`` times, then taken from b itself, as are all of them when
-    the previous scan was empty (or held only points whose Gaussians lie outside the area)."""
+    up to ``MEASUREMENT_BIRTH_ROUNDS`` times, then its position is drawn uniformly in the area, its
+    velocity still uniform in ±``speed`` (not b's ±v_b), as are all of them when the previous scan
+    held only points whose Gaussians lie outside the area. When the previous scan was empty the
+    particles are b's own draws (velocity in ±v_b)."""
     if G_prev is None:
         return b.draw(rng, k), np.full(k, -math.log(k))
 
