@@ -464,6 +464,10 @@ def test_greedy_aim_is_refused_where_it_cannot_hold_and_warned_where_it_does_not
 
     with pytest.raises(ConfigError, match="control.greedy_aim `own`.*control.plan_over `point`"):
         load_scenario("paper-fig3", ["control.solver=greedy", "control.greedy_aim=own", "control.plan_over=belief"])
+    # pursuit plans over the belief itself: the line says to set point, not to "leave" it
+    with pytest.raises(ConfigError, match=r"set control.plan_over `point` with it \(it is `belief`\), or leave "
+                                          r"control.greedy_aim `team`"):
+        load_scenario("pursuit", ["control.solver=greedy", "control.greedy_aim=own"])
     lines = scenario_warnings(load_scenario("paper-fig3", ["control.greedy_aim=own"]))
     assert any(line.startswith("control.greedy_aim: own has no effect under control.solver: grasp") for line in lines)
     assert not any("greedy_aim" in line for line in scenario_warnings(

@@ -774,8 +774,10 @@ class Scenario(_Model):
             raise ValueError(f"control.close_in ({c.close_in:g}): {why} without Eq. (13) already, so there is nothing "
                              "to close in from; leave control.close_in null")
         if c.greedy_aim == "own" and c.plan_over == "belief":
-            raise ValueError("control.greedy_aim `own` evaluates p_D at each agent's own predicted mean, a point; "
-                             "leave control.plan_over `point` with it")
+            # "leave ... `point`" read oddly where a preset (pursuit) had set `belief`
+            raise ValueError("control.greedy_aim `own` evaluates p_D at each agent's own predicted mean, a point: "
+                             "set control.plan_over `point` with it (it is `belief`), or leave control.greedy_aim "
+                             "`team`")
         lo, hi = self.area.low, self.area.high
         for j, u in enumerate(self.agents.initial):
             if any(not lo[k] <= u[k] <= hi[k] for k in range(3)):
