@@ -63,6 +63,28 @@ def test_a_trial_function_the_workers_cannot_import_is_refused_before_out_is_wri
     run_experiment("constraints", **{**SWEEP, "trial": lambda s: fake_trial(s)}, workers=1, out=tmp_path / "one")
 
 
+def test_a_trial_function_of_an_interactive_session_is_refused_before_out_is_written(tmp_path, monkeypatch):
+    # python -c, the REPL or a notebook: the function pickles as __main__.NAME, which no spawned
+    # worker can import; it was a worker traceback each and "a worker process of the pool ended
+    # abruptly (... perhaps by the system for lack of memory ...)", with experiment.json and trials/ written
+    import types
+
+    from sweep_helpers import fake_trial
+
+    def typed_in(scenario):
+        return fake_trial(scenario)
+
+    session = types.ModuleType("__main__")  # an interactive __main__: no __file__
+    typed_in.__module__, typed_in.__qualname__ = "__main__", "typed_in"
+    session.typed_in = typed_in
+    monkeypatch.setitem(sys.modules, "__main__", session)
+    with pytest.raises(TypeError, match=r"^trial: typed_in of module __main__ cannot be sent to the workers, which "
+                                        r"import it by its module and name: this session's __main__ has no file"):
+        run_experiment("constraints", **{**SWEEP, "trial": typed_in}, workers=2, out=tmp_path / "e")
+    assert not (tmp_path / "e").exists()
+    run_experiment("constraints", **{**SWEEP, "trial": typed_in}, workers=1, out=tmp_path / "one")
+
+
 def test_the_cli_refuses_a_million_workers_in_one_line(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "trackjam", "experiment", "constraints", "--trials", "1", "--steps", "2",

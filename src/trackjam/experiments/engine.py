@@ -17,6 +17,8 @@ import json
 import math
 import os
 import pickle
+import pickletools
+import sys
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -489,12 +491,29 @@ def _check_sendable(trial: TrialFunction, workers: int | None, scheduler: str | 
     This process's own trials (one local worker) take any function, and Dask sends its own way."""
     if scheduler or (workers or os.cpu_count() or 1) == 1:
         return
+    what = f"{getattr(trial, '__name__', type(trial).__name__)} of module {getattr(trial, '__module__', '?')}"
     try:
-        pickle.dumps(trial)
+        data = pickle.dumps(trial)
     except Exception:  # PicklingError, AttributeError ("Can't pickle local object"), TypeError
-        what = f"{getattr(trial, '__name__', type(trial).__name__)} of module {getattr(trial, '__module__', '?')}"
         raise TypeError(f"trial: {shortened(what, 80)} cannot be sent to the workers, which import it by its module "
                         "and name: define it at the top level of a module (or run with workers=1)") from None
+    # a function of an interactive session (python -c, the REPL, a notebook) pickles as __main__.NAME,
+    # but a spawned worker has no __main__ to import it from: each worker failed with "Can't get
+    # attribute", and the pool's "ended abruptly (... perhaps for lack of memory)" came after
+    # experiment.json and trials/ were written
+    if not getattr(sys.modules.get("__main__"), "__file__", None) and _names_main(data):
+        raise TypeError(f"trial: {shortened(what, 80)} cannot be sent to the workers, which import it by its module "
+                        "and name: this session's __main__ has no file they can import; define it in a module of "
+                        "its own (or run with workers=1)")
+
+
+def _names_main(data: bytes) -> bool:
+    """The pickle ``data`` refers to a name of the module ``__main__``."""
+    try:
+        return any(arg == "__main__" or (isinstance(arg, str) and arg.startswith("__main__ "))
+                   for _, arg, _ in pickletools.genops(data))
+    except Exception:  # pragma: no cover - pickle.dumps wrote it
+        return False
 
 
 def _planned(experiment: Experiment, trials: int, steps: int, seed: int, overrides: list[str],
