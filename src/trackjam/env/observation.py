@@ -72,8 +72,9 @@ def state_layout(n_agents: int) -> list[str]:
 
 def state_bounds(n_agents: int, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Box bounds of the global state: the agents' positions in the area; existence, flags and
-    time in [0, 1]; estimates and the truth unbounded (a target under ``walls: leave`` is last
-    seen past a wall)."""
+    time in [0, 1]; estimates unbounded (a filter's mean may stray past a wall with
+    ``filter.walls: none``) and the truth too (the engine keeps a target up to 1e-9 m past a
+    wall; one that flies out under ``walls: leave`` no longer exists, and its entries are 0)."""
     names = state_layout(n_agents)
     lo = np.full(len(names), -np.inf, dtype=np.float32)
     hi = np.full(len(names), np.inf, dtype=np.float32)
