@@ -15,11 +15,15 @@ from trackjam.estimation.kernels import (
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
     kernel_masked_moments,
+    kernel_position_proposal,
     kernel_reachable,
+    kernel_split_sums,
     kernel_systematic_indices,
+    kernel_take_rows,
     kernel_two_scan_velocity,
     kernel_update_factors,
     kernel_weighted_moments,
+    kernel_young_weights,
 )
 from trackjam.radio.antenna import axis_of, detection_probability
 from trackjam.radio.measurement import clutter_density, h, wrap_angle
@@ -359,3 +363,156 @@ def test_two_scan_velocity_matches_numpy():
     np.testing.assert_allclose(V, V_ref, rtol=1e-12)
     assert np.any(np.abs(V) > v_b) and np.any(V != V0)  # aimed draws, some beyond b's velocity box
     np.testing.assert_allclose(got, ref, rtol=1e-10)
+
+
+# -- kernels that replace numpy steps of the filter: each must give numpy's values bit for bit --
+
+def reference_log_mixture_in_order(P, mu, Linv, log_det):
+    """kernel_log_gaussian_mixture's online log-sum-exp in plain Python, every exp called (the
+    kernel skips those whose value is 0): the same floating-point steps in the same order."""
+    c = -1.5 * math.log(2.0 * math.pi) - math.log(len(mu))
+    out = np.empty(len(P))
+    for i, p in enumerate(P):
+        mx, acc = -math.inf, 0.0
+        for j in range(len(mu)):
+            d = [float(p[a] - mu[j, a]) for a in range(3)]
+            q = 0.0
+            for a in range(3):
+                y = 0.0
+                for b in range(a + 1):
+                    y += float(Linv[j, a, b]) * d[b]
+                q += y * y
+            t = -float(log_det[j]) - 0.5 * q
+            if t > mx:
+                acc = acc * math.exp(mx - t) + 1.0
+                mx = t
+            else:
+                acc += math.exp(t - mx)
+        out[i] = c + mx + math.log(acc)
+    return out
+
+
+def _far_mixture(rng, n=400):
+    """Points and Gaussians a few metres wide spread over 200 m: most terms of the mixture lie
+    thousands below its largest (exp of them is 0, which the kernels no longer call for)."""
+    mu = rng.uniform(0, 200, (4, 3))
+    A = rng.normal(0, 1.5, (4, 3, 3))
+    L = np.linalg.cholesky(A @ A.transpose(0, 2, 1) + 0.25 * np.eye(3))
+    P = np.vstack([rng.uniform(0, 200, (n - 40, 3)), mu[rng.integers(4, size=40)] + rng.normal(0, 2, (40, 3))])
+    return P, mu, L
+
+
+def test_gaussian_mixture_skipping_vanishing_terms_is_the_same_to_the_bit():
+    rng = np.random.default_rng(21)
+    P, mu, L = _far_mixture(rng)
+    Linv, log_det = np.linalg.inv(L), np.log(np.diagonal(L, axis1=1, axis2=2)).sum(1)
+    ref = reference_log_mixture_in_order(P, mu, Linv, log_det)
+    got = kernel_log_gaussian_mixture(P, mu, Linv, log_det)
+    assert np.array_equal(got, ref)
+    assert math.exp(-750.0) == 0.0 and math.exp(-745.2) == 0.0  # the threshold lies where exp is 0
+
+
+def reference_position_proposal(R, b_low, b_high, v, n_u, mu, L, comp, xi):
+    """``_position_proposal`` as numpy composed it before its kernel: b's draw, the mixture's
+    draws into rows n_u:, its density (kernel_log_gaussian_mixture, held to numpy above) plus the
+    area's log volume, np.logaddexp of the two shares, +inf outside the area."""
+    k = len(R)
+    lo = np.concatenate([b_low, np.full(3, -v)])
+    span = np.concatenate([b_high - b_low, np.full(3, 2.0 * v)])
+    X = lo + R * span
+    X[n_u:, :3] = kernel_gaussian_sample(mu, L, comp, xi)
+    log_volume = float(np.sum(np.log(b_high - b_low)))
+    log_G = kernel_log_gaussian_mixture(np.ascontiguousarray(X[:, :3]), mu, np.linalg.inv(L),
+                                        np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)) + log_volume
+    n_p = k - n_u
+    log_q = np.logaddexp(math.log(n_u / k) if n_u else -np.inf, math.log(n_p / k) + log_G)
+    log_q[n_u:][~np.all((X[n_u:, :3] >= b_low) & (X[n_u:, :3] <= b_high), axis=1)] = np.inf
+    return X, log_q
+
+
+@pytest.mark.parametrize("n_u", [0, 1, 150, 399])
+def test_position_proposal_is_the_numpy_composition_to_the_bit(n_u):
+    rng = np.random.default_rng(22 + n_u)
+    k = 400
+    P, mu, L = _far_mixture(rng)
+    low, high, v = np.zeros(3), np.array([200.0, 180.0, 60.0]), 3.0
+    R = rng.random((k, 6))
+    comp = rng.integers(4, size=k - n_u)
+    xi = rng.standard_normal((k - n_u, 3)) * 3.0  # some draws leave the area
+    X_ref, ref = reference_position_proposal(R, low, high, v, n_u, mu, L, comp, xi)
+    X = R.copy()
+    lo = np.concatenate([low, np.full(3, -v)])
+    span = np.concatenate([high - low, np.full(3, 2.0 * v)])
+    got = kernel_position_proposal(X, lo, span, n_u, mu, L, comp, xi, np.linalg.inv(L),
+                                   np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1),
+                                   float(np.sum(np.log(high - low))), math.log(n_u / k) if n_u else -np.inf,
+                                   math.log((k - n_u) / k), low, high)
+    assert np.array_equal(X, X_ref)
+    assert np.array_equal(got, ref)
+    if k - n_u > 100:
+        assert np.isinf(got[n_u:]).any() and np.isfinite(got).any()
+
+
+def test_logaddexp_of_the_proposal_is_numpys_to_the_bit():
+    """The proposal kernel's logaddexp is numpy's, infinities, ties and NaN included: rows whose
+    mixture density is given by hand through a one-Gaussian mixture of known log-density."""
+    rng = np.random.default_rng(23)
+    k = 3000
+    mu, L = np.zeros((1, 3)), np.eye(3)[None] * 1e-3
+    R = np.zeros((k, 6))  # every row at the low corner (0, 0, 0): the mixture's mean
+    # log G = -1.5 log(2 pi) - log det L; pick shares so that the two arguments of logaddexp run
+    # over a wide range, their tie included
+    base = -1.5 * math.log(2 * math.pi) - 3 * math.log(1e-3)
+    for share_p in list(rng.normal(0, 400, 200)) + [-base, -base + 1e-12, np.inf, -np.inf, np.nan]:
+        for share_u in (math.log(0.25), -np.inf, 0.0, 700.0):
+            got = kernel_position_proposal(R.copy(), np.zeros(6), np.ones(6), k, mu, L, np.zeros(0, dtype=np.int64),
+                                           np.zeros((0, 3)), np.linalg.inv(L), np.log(np.diagonal(L, axis1=1, axis2=2)).sum(1),
+                                           0.0, share_u, share_p, np.zeros(3), np.ones(3))[:1]
+            log_G = kernel_log_gaussian_mixture(np.zeros((1, 3)), mu, np.linalg.inv(L),
+                                                np.log(np.diagonal(L, axis1=1, axis2=2)).sum(1)) + 0.0
+            with np.errstate(invalid="ignore"):
+                ref = np.logaddexp(share_u, share_p + log_G)
+            assert np.array_equal(got, ref, equal_nan=True), (share_u, share_p)
+
+
+def test_young_weights_are_the_numpy_expression_to_the_bit():
+    rng = np.random.default_rng(24)
+    k, v_b = 500, 3.0
+    V = rng.uniform(-3.3, 3.3, (k, 3))
+    V[0] = [3.0, -3.0, 0.0]  # on the box's faces: inside
+    V[1, 2] = np.nan
+    log_L, log_qp, log_qv = rng.normal(0, 5, k), rng.normal(0, 5, k), rng.normal(0, 5, k)
+    log_qp[rng.random(k) < 0.1] = np.inf
+    log_qp[2], log_qv[3], log_L[4], log_qv[5] = np.nan, -np.inf, -np.inf, np.nan
+    log_U = -3.0 * math.log(2.0 * v_b)
+    in_box = np.all(np.abs(V) <= v_b, axis=1)
+    with np.errstate(invalid="ignore"):
+        ref = np.where(in_box & np.isfinite(log_qp), log_U + log_L - log_qp - log_qv, -np.inf)
+    got = kernel_young_weights(V, v_b, log_U, log_L, log_qp, log_qv)
+    assert np.array_equal(got, ref, equal_nan=True)
+    assert in_box[0] and not in_box.all()
+
+
+def test_take_rows_is_fancy_indexing():
+    rng = np.random.default_rng(25)
+    X = rng.normal(size=(300, 6))
+    for idx in (np.sort(rng.integers(0, 300, 500)), rng.integers(0, 300, 7), np.zeros(0, dtype=np.int64)):
+        got = kernel_take_rows(X, idx)
+        assert got.shape == (len(idx), 6) and np.array_equal(got, X[idx])
+    X[0, 0] = X[0, 0] + 1.0  # a copy, not a view
+    assert got.base is None or got.base is not X
+
+
+def test_split_sums_are_the_in_order_sums_of_each_part():
+    rng = np.random.default_rng(26)
+    w = rng.random(1000) ** 3
+    mask = rng.random(1000) < 0.3
+    s_in, s_out = kernel_split_sums(w, mask)
+    ref_in = ref_out = 0.0
+    for x, m in zip(w, mask):
+        if m:
+            ref_in += x
+        else:
+            ref_out += x
+    assert (s_in, s_out) == (ref_in, ref_out)
+    assert s_in == pytest.approx(w[mask].sum(), rel=1e-13) and kernel_split_sums(w, np.zeros(1000, bool))[0] == 0.0

@@ -73,7 +73,9 @@ from trackjam.estimation.kernels import (
     kernel_masked_moments,
     kernel_mode_cluster,
     kernel_reflect,
+    kernel_split_sums,
     kernel_systematic_indices,
+    kernel_take_rows,
     kernel_update_factors,
     kernel_weighted_moments,
 )
@@ -635,7 +637,7 @@ class BernoulliFilter:
         if k < len(X):
             log_mass = float(kernel_logsumexp(log_post[k:]))
             if log_mass > -np.inf:
-                self._young = Young(X[k:].copy(), log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scans,
+                self._young = Young(X[k:], log_post[k:] - log_mass, min(math.exp(log_mass), 1.0), scans,
                                     log_L[k:] > 0.0 if self.reserve_memory > 0 else None,
                                     None if nu_post is None else nu_post[k:].copy())
         self.e = e
@@ -671,11 +673,18 @@ class BernoulliFilter:
         velocity and only Eq. (1)'s noise spreads them again.
         """
         reserve = min(RESERVE_CAP * self.n_b, int(RESERVE_SHARE * n))
-        W_a = float(w[supported].sum())
-        W_r = float(w[~supported].sum())
-        if reserve == 0 or W_a <= 0.0 or W_r <= 0.0 or W_a * n >= reserve:
+        # the masses' in-order sums decide the plain case when they lie far from its thresholds
+        # (the weights are >= 0: an in-order sum is 0 exactly when numpy's is, and the two differ
+        # by far less than the 1e-6 margin); else numpy's sums decide, and weigh the split
+        s_a, s_r = kernel_split_sums(w, supported) if reserve else (1.0, 1.0)
+        plain = reserve == 0 or s_a == 0.0 or s_r == 0.0 or s_a * n >= reserve * (1.0 + 1e-6)
+        if not plain:
+            W_a = float(w[supported].sum())
+            W_r = float(w[~supported].sum())
+            plain = W_a <= 0.0 or W_r <= 0.0 or W_a * n >= reserve
+        if plain:
             idx = kernel_systematic_indices(w, n, self.rng.uniform())
-            return X[idx], np.full(n, -math.log(n)), idx
+            return kernel_take_rows(X, idx), np.full(n, -math.log(n)), idx
         ia = np.flatnonzero(supported)
         ir = np.flatnonzero(~supported)
         n_r = n - reserve
@@ -683,7 +692,7 @@ class BernoulliFilter:
         idx_r = ir[kernel_systematic_indices(w[ir] / W_r, n_r, self.rng.uniform())]
         log_w = np.concatenate([np.full(reserve, math.log(W_a / reserve)), np.full(n_r, math.log(W_r / n_r))])
         idx = np.concatenate([idx_a, idx_r])
-        X_new = X[idx]
+        X_new = kernel_take_rows(X, idx)
         if self.velocity_jitter > 0.0:
             copies = np.flatnonzero(idx_a[1:] == idx_a[:-1]) + 1  # systematic indices are sorted: copies are adjacent
             X_new[copies, 3:] += self.velocity_jitter * self.rng.standard_normal((len(copies), 3))

@@ -31,7 +31,9 @@ from trackjam.estimation.kernels import (
     kernel_gaussian_sample,
     kernel_log_gaussian_mixture,
     kernel_logsumexp,
+    kernel_position_proposal,
     kernel_two_scan_velocity,
+    kernel_young_weights,
 )
 
 DT = 1.0  # dT [s]
@@ -76,15 +78,27 @@ class Gaussians:
                 floor: float = PROPOSAL_FLOOR) -> "Gaussians":
         return cls.of(*measurement_covariances(Z, u, noise_std, inflate, floor))
 
+    def draws(self, rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The random numbers of :meth:`sample`: each draw's component and its standard normals."""
+        return rng.integers(len(self.mu), size=k), rng.standard_normal((k, 3))
+
     def sample(self, rng: np.random.Generator, k: int) -> np.ndarray:
-        comp = rng.integers(len(self.mu), size=k)
-        xi = rng.standard_normal((k, 3))
-        return kernel_gaussian_sample(self.mu, self.chol, comp, xi)
+        return kernel_gaussian_sample(self.mu, self.chol, *self.draws(rng, k))
+
+    def inverse(self) -> tuple[np.ndarray, np.ndarray]:
+        """The inverse Cholesky factors and ``log det`` of each, as :meth:`log_pdf` takes them."""
+        return np.linalg.inv(self.chol), np.log(np.diagonal(self.chol, axis1=1, axis2=2)).sum(axis=1)
 
     def log_pdf(self, P: np.ndarray) -> np.ndarray:
         """log of (1/k) sum_j N(p_i; mu_j, C_j) at each row of ``P`` (n, 3)."""
-        log_det = np.log(np.diagonal(self.chol, axis1=1, axis2=2)).sum(axis=1)
-        return kernel_log_gaussian_mixture(np.ascontiguousarray(P), self.mu, np.linalg.inv(self.chol), log_det)
+        Linv, log_det = self.inverse()
+        return kernel_log_gaussian_mixture(np.ascontiguousarray(P), self.mu, Linv, log_det)
+
+
+def _read_only(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    for a in arrays:
+        a.flags.writeable = False
+    return arrays
 
 
 @dataclass(frozen=True)
@@ -99,17 +113,33 @@ class UniformBirth:
     def log_volume(self) -> float:
         return float(np.sum(np.log(self.high - self.low)))
 
+    def box(self, v_b: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The state box's lowest corner and its widths, velocity in ±``v_b`` (default b's); b's
+        own is built once (read-only arrays)."""
+        if v_b is None:
+            if "_box" not in self.__dict__:
+                object.__setattr__(self, "_box", _read_only(*self._make_box(self.v_b)))
+            return self.__dict__["_box"]
+        return self._make_box(v_b)
+
+    def _make_box(self, v: float) -> tuple[np.ndarray, np.ndarray]:
+        return (np.concatenate([self.low, np.full(3, -v)]),
+                np.concatenate([self.high - self.low, np.full(3, 2.0 * v)]))
+
     def draw(self, rng: np.random.Generator, k: int, v_b: float | None = None) -> np.ndarray:
-        v = self.v_b if v_b is None else v_b
-        lo = np.concatenate([self.low, np.full(3, -v)])
-        span = np.concatenate([self.high - self.low, np.full(3, 2.0 * v)])
-        return lo + rng.random((k, 6)) * span
+        lo, span = self.box(v_b)
+        X = rng.random((k, 6))
+        X *= span
+        X += lo  # lo + r span, in place
+        return X
 
     def moments(self) -> tuple[np.ndarray, np.ndarray]:
-        """Exact mean and covariance of b."""
-        mean = np.concatenate([(self.low + self.high) / 2, np.zeros(3)])
-        var = np.concatenate([(self.high - self.low) ** 2 / 12, np.full(3, self.v_b**2 / 3)])
-        return mean, np.diag(var)
+        """Exact mean and covariance of b (computed once; read-only arrays)."""
+        if "_moments" not in self.__dict__:
+            mean = np.concatenate([(self.low + self.high) / 2, np.zeros(3)])
+            var = np.concatenate([(self.high - self.low) ** 2 / 12, np.full(3, self.v_b**2 / 3)])
+            object.__setattr__(self, "_moments", _read_only(mean, np.diag(var)))
+        return self.__dict__["_moments"]
 
     def in_area(self, P: np.ndarray) -> np.ndarray:
         return np.all((P >= self.low) & (P <= self.high), axis=1)
@@ -123,15 +153,17 @@ def _position_proposal(rng, b: UniformBirth, G: Gaussians | None, k: int, fracti
     """``k`` states whose velocity is b's and whose position comes from the deterministic mixture
     (n_u from the area, n_p from G); returns them with ``log q_p(p) - log U_area(p)``, -inf
     outside the area (where b is 0)."""
-    X = b.draw(rng, k)
     n_p = int(round(fraction * k)) if G is not None else 0
     if n_p == 0:
-        return X, np.zeros(k)
+        return b.draw(rng, k), np.zeros(k)
+    X = rng.random((k, 6))  # b.draw's numbers, scaled to b's box by the kernel
     n_u = k - n_p
-    X[n_u:, :3] = G.sample(rng, n_p)
-    log_G = G.log_pdf(X[:, :3]) + b.log_volume  # relative to the uniform density of the area
-    log_q = np.logaddexp(math.log(n_u / k) if n_u else -np.inf, math.log(n_p / k) + log_G)
-    log_q[n_u:][~b.in_area(X[n_u:, :3])] = np.inf  # the rows drawn from b are inside by construction
+    comp, xi = G.draws(rng, n_p)
+    # rows n_u: take G's draws; log q = logaddexp(log(n_u / k), log(n_p / k) + log G(p) + log |area|)
+    # (G relative to the uniform density of the area), +inf where a row drawn from G lies outside
+    # the area (the rows drawn from b are inside by construction); one compiled pass
+    log_q = kernel_position_proposal(X, *b.box(), n_u, G.mu, G.chol, comp, xi, *G.inverse(), b.log_volume,
+                                     math.log(n_u / k) if n_u else -np.inf, math.log(n_p / k), b.low, b.high)
     return X, log_q
 
 
@@ -170,9 +202,8 @@ def redraw_young(rng, b: UniformBirth, G_prev: Gaussians, G_now: Gaussians, k: i
     )
     X[:, 3:] = V
     log_U = -3.0 * math.log(2.0 * b.v_b)
-    in_box = np.all(np.abs(V) <= b.v_b, axis=1)
-    with np.errstate(invalid="ignore"):
-        log_w = np.where(in_box & np.isfinite(log_qp), log_U + log_L_prev(X) - log_qp - log_qv, -np.inf)
+    # log_U + log L_{t-1} - log q_p - log q_v where V lies in b's box and q_p is finite, else -inf
+    log_w = kernel_young_weights(V, b.v_b, log_U, log_L_prev(X), log_qp, log_qv)
     if not np.any(np.isfinite(log_w)):
         return X, np.full(k, -np.inf)
     return X, _normalised(log_w)

@@ -131,20 +131,22 @@ def kernel_logsumexp(a):
 
 @njit(cache=True, inline="always")
 def _covariance_rows(X, w, inside, mass, mean, a, cov):
-    """Rows ``a`` and ``a + 1`` of the weighted second central moment of ``X`` (n, 6) into ``cov``:
-    ``cov[r, b] = sum_i (w_i / mass) (X[i, r] - mean[r]) (X[i, b] - mean[b])`` over the rows
-    where ``inside`` (every row, and weights ``w_i`` undivided, when ``inside`` has length 0),
-    summed in particle order.
+    """Rows ``a``, ``a + 1`` and ``a + 2`` of the weighted second central moment of ``X`` (n, 6)
+    into ``cov``: ``cov[r, b] = sum_i (w_i / mass) (X[i, r] - mean[r]) (X[i, b] - mean[b])`` over
+    the rows where ``inside`` (every row, and weights ``w_i`` undivided, when ``inside`` has length
+    0), summed in particle order.
 
     Each entry gets the same terms in the same order as the one-pass loop it replaces (``acc``
     of 36 entries in memory, per particle ``wa = w_i diff_a`` then ``acc[a, b] += wa diff_b``),
-    so the result is the same to the bit; the twelve sums are held in registers, which made
-    the moments of 12k particles 1.5x faster."""
+    so the result is the same to the bit; the eighteen sums are held in registers (two passes
+    of three rows: 12k particles 128 -> 108 us against three passes of two, which made the
+    moments 1.5x faster than the loop in memory)."""
     m0, m1, m2, m3, m4, m5 = mean[0], mean[1], mean[2], mean[3], mean[4], mean[5]
-    ma, mb = mean[a], mean[a + 1]
+    ma, mb, mc = mean[a], mean[a + 1], mean[a + 2]
     masked = inside.shape[0] > 0
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
     t0 = t1 = t2 = t3 = t4 = t5 = 0.0
+    v0 = v1 = v2 = v3 = v4 = v5 = 0.0
     for i in range(X.shape[0]):
         if masked and not inside[i]:
             continue
@@ -153,6 +155,7 @@ def _covariance_rows(X, w, inside, mass, mean, a, cov):
         d3, d4, d5 = X[i, 3] - m3, X[i, 4] - m4, X[i, 5] - m5
         wa = wi * (X[i, a] - ma)
         wb = wi * (X[i, a + 1] - mb)
+        wc = wi * (X[i, a + 2] - mc)
         s0 += wa * d0
         s1 += wa * d1
         s2 += wa * d2
@@ -165,8 +168,15 @@ def _covariance_rows(X, w, inside, mass, mean, a, cov):
         t3 += wb * d3
         t4 += wb * d4
         t5 += wb * d5
+        v0 += wc * d0
+        v1 += wc * d1
+        v2 += wc * d2
+        v3 += wc * d3
+        v4 += wc * d4
+        v5 += wc * d5
     cov[a, 0], cov[a, 1], cov[a, 2], cov[a, 3], cov[a, 4], cov[a, 5] = s0, s1, s2, s3, s4, s5
     cov[a + 1, 0], cov[a + 1, 1], cov[a + 1, 2], cov[a + 1, 3], cov[a + 1, 4], cov[a + 1, 5] = t0, t1, t2, t3, t4, t5
+    cov[a + 2, 0], cov[a + 2, 1], cov[a + 2, 2], cov[a + 2, 3], cov[a + 2, 4], cov[a + 2, 5] = v0, v1, v2, v3, v4, v5
 
 
 @njit(cache=True)
@@ -174,7 +184,7 @@ def _moments(X, w, inside, mass):
     """Mean (6,) and symmetrised covariance (6, 6) of the rows of ``X`` (n, 6) where ``inside``
     with weights ``w / mass``, or of every row with weights ``w`` when ``inside`` has length 0:
     the mean is ``sum_i w_i X_i`` over those rows, then divided by ``mass`` when masked; the
-    covariance three passes of :func:`_covariance_rows`."""
+    covariance two passes of :func:`_covariance_rows`."""
     masked = inside.shape[0] > 0
     m0 = m1 = m2 = m3 = m4 = m5 = 0.0
     for i in range(X.shape[0]):
@@ -191,7 +201,7 @@ def _moments(X, w, inside, mass):
     if masked:
         mean /= mass
     cov = np.empty((6, 6))
-    for a in range(0, 6, 2):
+    for a in range(0, 6, 3):
         _covariance_rows(X, w, inside, mass, mean, a, cov)
     return mean, 0.5 * (cov + cov.T)
 
@@ -202,34 +212,65 @@ def kernel_weighted_moments(X, w):
     return _moments(X, w, np.empty(0, dtype=np.bool_), 1.0)
 
 
+# exp(x) is 0 for every x below about -745.13 (its true value is under half the least subnormal);
+# libm reaches that 0 through its slow underflow path (errno, FP flags), which made the mixture
+# densities of the birth proposals 2-3 times slower than they need be: below EXP_ZERO the
+# helpers below skip the call and use its value, 0, so every result is the same bit for bit
+EXP_ZERO = -750.0
+
+
+@njit(cache=True, inline="always")
+def _scaled(acc, x):
+    """``acc * exp(x)``, without calling exp where it is 0 (``acc`` finite: ``acc * 0 = 0``)."""
+    return acc * math.exp(x) if not x < EXP_ZERO else 0.0 * acc
+
+
+@njit(cache=True, inline="always")
+def _add_exp(acc, x):
+    """``acc + exp(x)``, without calling exp where it is 0."""
+    return acc + math.exp(x) if not x < EXP_ZERO else acc + 0.0
+
+
+@njit(cache=True, inline="always")
+def _log1p_exp(x):
+    """``log1p(exp(x))``, without calling either where exp is 0 (``log1p(0) = 0``)."""
+    return math.log1p(math.exp(x)) if not x < EXP_ZERO else 0.0
+
+
+@njit(cache=True, inline="always")
+def _log_mixture_row(P, i, mu, Linv, log_det, c, d):
+    """log of (1/k) sum_j N(P[i, :3]; mu_j, Sigma_j) (see :func:`kernel_log_gaussian_mixture`);
+    ``c = -1.5 log(2 pi) - log k``, ``d`` a work array of 3."""
+    mx = -np.inf
+    acc = 0.0
+    for j in range(mu.shape[0]):
+        for a in range(3):
+            d[a] = P[i, a] - mu[j, a]
+        q = 0.0
+        for a in range(3):
+            y = 0.0
+            for b in range(a + 1):
+                y += Linv[j, a, b] * d[b]
+            q += y * y
+        t = -log_det[j] - 0.5 * q
+        if t > mx:
+            acc = _scaled(acc, mx - t) + 1.0
+            mx = t
+        else:
+            acc = _add_exp(acc, t - mx)
+    return c + mx + math.log(acc)
+
+
 @njit(cache=True)
 def kernel_log_gaussian_mixture(P, mu, Linv, log_det):
     """log of (1/k) sum_j N(P[i]; mu_j, Sigma_j) at each row of ``P`` (n, 3), given the means
     ``mu`` (k, 3), the inverse Cholesky factors ``Linv`` (k, 3, 3) and ``log_det[j] = log det L_j``."""
     n = P.shape[0]
-    k = mu.shape[0]
     out = np.empty(n)
-    c = -1.5 * _LOG_2PI - math.log(k)
+    c = -1.5 * _LOG_2PI - math.log(mu.shape[0])
     d = np.empty(3)
     for i in range(n):
-        mx = -np.inf
-        acc = 0.0
-        for j in range(k):
-            for a in range(3):
-                d[a] = P[i, a] - mu[j, a]
-            q = 0.0
-            for a in range(3):
-                y = 0.0
-                for b in range(a + 1):
-                    y += Linv[j, a, b] * d[b]
-                q += y * y
-            t = -log_det[j] - 0.5 * q
-            if t > mx:
-                acc = acc * math.exp(mx - t) + 1.0
-                mx = t
-            else:
-                acc += math.exp(t - mx)
-        out[i] = c + mx + math.log(acc)
+        out[i] = _log_mixture_row(P, i, mu, Linv, log_det, c, d)
     return out
 
 
@@ -261,13 +302,67 @@ def kernel_gaussian_sample(mu, chol, comp, xi):
     n = comp.shape[0]
     out = np.empty((n, 3))
     for i in range(n):
-        c = comp[i]
-        for a in range(3):
-            t = chol[c, a, 1] * xi[i, 1]
-            t = _fma(chol[c, a, 0], xi[i, 0], t)
-            t = _fma(chol[c, a, 2], xi[i, 2], t)
-            out[i, a] = mu[c, a] + t
+        _sample_row(mu, chol, comp[i], xi, i, out, i)
     return out
+
+
+@njit(cache=True, inline="always")
+def _sample_row(mu, chol, c, xi, i, out, r):
+    """Row ``r`` of ``out`` (its first 3 columns) = ``mu[c] + chol[c] @ xi[i]``, summed as
+    :func:`kernel_gaussian_sample` says."""
+    for a in range(3):
+        t = chol[c, a, 1] * xi[i, 1]
+        t = _fma(chol[c, a, 0], xi[i, 0], t)
+        t = _fma(chol[c, a, 2], xi[i, 2], t)
+        out[r, a] = mu[c, a] + t
+
+
+_LOG_2 = math.log(2.0)  # numpy's NPY_LOGE2
+
+
+@njit(cache=True, inline="always")
+def _logaddexp(x, y):
+    """``np.logaddexp(x, y)`` as numpy computes it (npymath's ``npy_logaddexp``, libm's exp and
+    log1p, which numba calls too): the same value bit for bit, NaN and infinities included."""
+    if x == y:
+        return x + _LOG_2
+    tmp = x - y
+    if tmp > 0:
+        return x + _log1p_exp(-tmp)
+    elif tmp <= 0:
+        return y + _log1p_exp(tmp)
+    return tmp
+
+
+@njit(cache=True)
+def kernel_position_proposal(X, lo, span, n_u, mu, chol, comp, xi, Linv, log_det, log_volume, log_share_u,
+                             log_share_p, low, high):
+    """The position part of the birth proposal (estimation/birth.py ``_position_proposal``) after
+    its draws, in one pass, in place of the numpy steps it replaces, each value the same bit for
+    bit (tests/estimation/test_kernels.py): ``X`` (k, 6) holds uniform numbers in [0, 1) and
+    becomes ``lo + X span`` (``UniformBirth.draw``); its rows ``n_u:`` then get the positions
+    ``mu[comp] + chol[comp] @ xi`` (:func:`kernel_gaussian_sample`). Returns per row ``log q =
+    logaddexp(log_share_u, log_share_p + (log G(p) + log_volume))`` with ``G`` the mixture of
+    :func:`kernel_log_gaussian_mixture`, +inf on the rows from ``n_u`` on whose position lies
+    outside the box [low, high]."""
+    k = X.shape[0]
+    for i in range(k):
+        for a in range(6):
+            X[i, a] = lo[a] + X[i, a] * span[a]
+    for i in range(k - n_u):
+        _sample_row(mu, chol, comp[i], xi, i, X, n_u + i)
+    log_q = np.empty(k)
+    c = -1.5 * _LOG_2PI - math.log(mu.shape[0])
+    d = np.empty(3)
+    for i in range(k):
+        log_G = _log_mixture_row(X, i, mu, Linv, log_det, c, d) + log_volume
+        lq = _logaddexp(log_share_u, log_share_p + log_G)
+        if i >= n_u:
+            for a in range(3):
+                if not (X[i, a] >= low[a] and X[i, a] <= high[a]):
+                    lq = np.inf
+        log_q[i] = lq
+    return log_q
 
 
 @njit(cache=True)
@@ -292,6 +387,34 @@ def kernel_systematic_indices(w, n_out, u0):
             c += w[k]
         idx[i] = k
     return idx
+
+
+@njit(cache=True)
+def kernel_take_rows(X, idx):
+    """``X[idx]`` for a 2-D ``X`` and indices ``idx`` within its rows (not checked): a copy, row by
+    row (numpy's fancy indexing of 10,000 rows of 6 took 100 us, this 10-15 us)."""
+    n = idx.shape[0]
+    d = X.shape[1]
+    out = np.empty((n, d))
+    for i in range(n):
+        r = idx[i]
+        for a in range(d):
+            out[i, a] = X[r, a]
+    return out
+
+
+@njit(cache=True)
+def kernel_split_sums(w, mask):
+    """In-order sums of ``w`` where ``mask`` and where not: a cheap look at the two masses, not
+    numpy's (pairwise) sums; the filter only takes them as a guide where far from a threshold."""
+    s_in = 0.0
+    s_out = 0.0
+    for i in range(w.shape[0]):
+        if mask[i]:
+            s_in += w[i]
+        else:
+            s_out += w[i]
+    return s_in, s_out
 
 
 @njit(cache=True)
@@ -396,13 +519,30 @@ def kernel_two_scan_velocity(P, V, mu, chol, Linv, log_det, sd, v_b, dt, blind, 
                 q += y * y
             t = c - log_det[j] - 0.5 * q
             if t > mx:
-                acc_s = acc_s * math.exp(mx - t) + 1.0
+                acc_s = _scaled(acc_s, mx - t) + 1.0
                 mx = t
             else:
-                acc_s += math.exp(t - mx)
+                acc_s = _add_exp(acc_s, t - mx)
         log_aimed = math.log(1.0 - blind) + mx + math.log(acc_s) - math.log(r)
         hi = max(log_blind, log_aimed)
-        out[i] = hi + math.log1p(math.exp(min(log_blind, log_aimed) - hi)) if hi > -np.inf else -np.inf
+        out[i] = hi + _log1p_exp(min(log_blind, log_aimed) - hi) if hi > -np.inf else -np.inf
+    return out
+
+
+@njit(cache=True)
+def kernel_young_weights(V, v_b, log_U, log_L, log_qp, log_qv):
+    """The two-scan proposal's weights (estimation/birth.py ``redraw_young``) in one pass: per row
+    ``log_U + log_L - log_qp - log_qv`` where every velocity component of ``V`` (k, 3) lies within
+    ``±v_b`` and ``log_qp`` is finite, else -inf; the numpy expression it replaces, bit for bit."""
+    k = V.shape[0]
+    out = np.empty(k)
+    for i in range(k):
+        ok = abs(V[i, 0]) <= v_b and abs(V[i, 1]) <= v_b and abs(V[i, 2]) <= v_b
+        lp = log_qp[i]
+        if ok and math.isfinite(lp):
+            out[i] = log_U + log_L[i] - lp - log_qv[i]
+        else:
+            out[i] = -np.inf
     return out
 
 
