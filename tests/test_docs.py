@@ -229,18 +229,22 @@ def test_the_readmes_example_of_a_scenario_too_large_gives_its_figure():
     assert quoted.group(1) in str(err.value)
 
 
-def test_the_small_options_table_is_the_committed_run_of_docs_search_options():
+@pytest.mark.parametrize("script, folder, section", [
+    ("search_options", "search-options", "## The small options together"),
+    ("birth_mixed", "birth-mixed", "## The mixed birth kept inside the area"),
+])
+def test_a_paired_table_of_docs_holding_is_the_committed_run_of_its_script(script, folder, section):
     """docs/search_options.py's experiment made docs/experiments/search-options/, and the table of
-    docs/holding.md ("The small options together") quotes its counts."""
+    docs/holding.md ("The small options together") quotes its counts; likewise docs/birth_mixed.py's."""
     import importlib.util
 
     from trackjam.experiments.summary import read_table
 
-    spec = importlib.util.spec_from_file_location("search_options", ROOT / "docs" / "search_options.py")
+    spec = importlib.util.spec_from_file_location(script, ROOT / "docs" / f"{script}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     experiment = module.experiment()
-    folder = ROOT / "docs" / "experiments" / "search-options"
+    folder = ROOT / "docs" / "experiments" / folder
     rows = read_table(folder / "summary.csv")
     assert [r["label"] for r in rows] == [c.label for c in experiment.configurations]
     assert all(int(r["trials"]) == module.TRIALS for r in rows)
@@ -248,7 +252,7 @@ def test_the_small_options_table_is_the_committed_run_of_docs_search_options():
     preset, together = (int(r["reacquired"]) for r in rows)
     gained, lost = int(pair["reacquired_gained"]), int(pair["reacquired_lost"])
     assert together - preset == gained - lost  # the sign test counts the same trials
-    text = (ROOT / "docs" / "holding.md").read_text().split("## The small options together", 1)[1]
+    text = (ROOT / "docs" / "holding.md").read_text().split(section, 1)[1].split("\n## ", 1)[0]
     assert f"{preset} of 300" in text and f"{together} of 300" in text and f"{gained} / {lost}" in text
 
 
@@ -266,11 +270,12 @@ def test_docs_input_names_every_warning_a_scenario_can_give():
         "agents.initial=[[30, 30, 30], [30, 30, 30], [10, 15, 15]]", "comms.failures=[{agent: 0, step: 9, mode: channel}]",
         "comms.delay_steps=5", "control.plan_over=point", "control.belief_at_least=1", "filter.association_misses=true",
         "fusion.share=posteriors", "filter.team_proposals=true", "metrics.gate=1000", "control.belief_samples=8",
+        "control.greedy_aim=own",
     ])
     unseen = trackjam.load_scenario("pursuit", ["target.occlusions=[]", "oracle.follow_up=3"])
     lines = scenario_warnings(s) + scenario_warnings(unseen)
     keys = {re.match(r"([\w.]+)", line).group(1) for line in lines}
-    assert len(keys) == 13, lines
+    assert len(keys) == 14, lines
     assert sorted(k for k in keys if f"`{k}" not in doc) == []
 
 
