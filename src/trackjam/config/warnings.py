@@ -48,7 +48,7 @@ def scenario_warnings(s: Scenario) -> list[str]:
                    "(it is the sample size of the steps planned over the belief)")
     if c.greedy_aim != "team" and c.solver != "greedy":
         out.append(f"control.greedy_aim: {c.greedy_aim} has no effect under control.solver: {c.solver} (it is where "
-                   "greedy, Eq. 11, evaluates p_D)")
+                   "greedy, Eq. 11, evaluates p_D; only the learning environment's Planned('greedy') would read it)")
     if s.oracle is not None and s.oracle != type(s.oracle)() and not any(
             a <= s.steps for t in s.target_list for a, _ in t.occlusions):
         out.append("oracle: has no effect in this run, which has no occlusion (each oracle acts before, during or "
