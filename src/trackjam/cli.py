@@ -182,15 +182,7 @@ def _say_interrupted(err: BaseException) -> None:
     global _said_interrupted
     _said_interrupted = True
     typer.echo("trackjam: interrupted", err=True)
-    if _cause(err, ImportError) is not None:
-        import os
-
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(130)
+    _end_now_if_in_import(err, 130)
     raise typer.Exit(130)
 
 
@@ -201,16 +193,23 @@ def _say_terminated(err: BaseException, line: str) -> None:
     global _said_terminated
     _said_terminated = True
     typer.echo(line, err=True)
-    if _cause(err, ImportError) is not None:
-        import os
-
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(TERMINATED)
+    _end_now_if_in_import(err, TERMINATED)
     raise SystemExit(TERMINATED) from None
+
+
+def _end_now_if_in_import(err: BaseException, status: int) -> None:
+    """End the process at once with ``status``, its output flushed, when the signal behind ``err``
+    landed in the import of a compiled module (see :func:`_say_interrupted`); else return."""
+    if _cause(err, ImportError) is None:
+        return
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(status)
 
 
 def _terminated_by(err: BaseException) -> BaseException | None:
