@@ -49,11 +49,17 @@ def _past_limits(path: Path) -> tuple[str, int, int] | None:
     return None
 
 
+def _temporary_affixes(name: str) -> tuple[str, str]:
+    """The prefix and suffix of :func:`atomic_write`'s temporary name for a file ``name``."""
+    return f".{name}.", TEMP_MARK + Path(name).suffix
+
+
 def temporary_beside(path: Path) -> Path:
     """The longest name :func:`atomic_write` gives the temporary file of ``path`` (mkstemp's
     random part is 8 characters)."""
     path = Path(path)
-    return path.with_name(f".{path.name}.{'x' * 8}{TEMP_MARK}{path.suffix}")
+    prefix, suffix = _temporary_affixes(path.name)
+    return path.with_name(f"{prefix}{'x' * 8}{suffix}")
 
 
 def existing_folder(path: Path, where: str) -> Path:
@@ -112,7 +118,8 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
     path = Path(path)
     if special_file(path):  # (a folder the rename itself refuses)
         raise OSError(errno.EINVAL, "not a regular file (a device or a pipe); it is not replaced", str(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMP_MARK + path.suffix, dir=path.parent)
+    prefix, suffix = _temporary_affixes(path.name)
+    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
     os.close(fd)
     try:
         write(Path(tmp))
@@ -127,7 +134,8 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
 
 def is_temporary_of(p: Path, name: str) -> bool:
     """A leftover of an interrupted :func:`atomic_write` to ``name`` in ``p``'s folder."""
-    return p.name.startswith(f".{name}.") and p.name.endswith(TEMP_MARK + Path(name).suffix)
+    prefix, suffix = _temporary_affixes(name)
+    return p.name.startswith(prefix) and p.name.endswith(suffix)
 
 
 def remove_leftover(p: Path) -> None:
