@@ -185,10 +185,10 @@ class Team:
             return decisions, time.perf_counter() - t0
         proposals = self._proposals(working, x_bars, displacements, ant, low, high, plan, t0, told is not None)
         inboxes = self.exchange.send(self.t, "plan", [Message(p.sender, "plan", self.t, plan=p) for p in proposals])
-        own = {p.sender: p for p in proposals}
+        own = {p.sender: p for p in proposals} if plan.own_aims else None
         for j in working:
             # Eq. (11) as printed (greedy_aim: own): each agent applies the plan it made alone
-            best = own[j] if plan.own_aims else adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
+            best = own[j] if own is not None else adopt([m.plan for m in inboxes[j] if m.stamp == self.t], j)
             move, level = best.control_of(j)
             objective = best.objective if best.mode == "track" else np.nan
             decisions[j] = Decision(best.mode, move, level, best.aim, x_bars[j], objective, len(self.fresh(j)),
