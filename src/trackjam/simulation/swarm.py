@@ -12,7 +12,9 @@ Simulation`, a thin loop over the several-target blocks. One step:
    ``control.horizon``);
 3. :func:`trackjam.control.assignment.solve_assignment` picks each agent's (move, level, aim);
    with no aim the team hovers at its last aims with the fall-back levels
-   (:func:`trackjam.control.fallback.fallback_levels`);
+   (:func:`trackjam.control.fallback.fallback_levels`); ``step((moves, levels, serves))`` applies
+   the given ones instead (:meth:`SwarmSimulation._given`: each agent serves the predicted team
+   track holding the track it names, or keeps its last aim when that track is gone);
 4. antennas point at the aim they serve (``antenna.pointing: aim``) or, under ``truth``, at the
    true position of the target matched to that aim within ``metrics.gate`` (the aim when none
    is); :func:`trackjam.radio.measurement.target_exposure` gives each target's power and p_D;
@@ -42,6 +44,7 @@ import numpy as np
 
 from trackjam.control.assignment import SolverOptions, build_assignment, solve_assignment
 from trackjam.control.fallback import fallback_levels
+from trackjam.errors import bounded_repr
 from trackjam.estimation.bernoulli import Estimate, Scan
 from trackjam.estimation.fusion import CONFIRM, fuse_unchecked
 from trackjam.estimation.lmb import LMBFilter, Track, TrackEstimate
@@ -49,6 +52,7 @@ from trackjam.estimation.lmb_fusion import FusedTrack, fuse_tracks_unchecked
 from trackjam.metrics.multi import gated_assignment, ospa_parts
 from trackjam.radio.antenna import detection_probability, interference_matrix
 from trackjam.radio.measurement import sample_scan_multi, target_exposure_unchecked
+from trackjam.simulation.actions import checked_actions
 from trackjam.simulation.build import SwarmComponents, build_swarm
 from trackjam.simulation.engine import Stepping, located
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
@@ -85,6 +89,7 @@ class SwarmRecord:
     tracks: dict
     agents: dict
     scans: list[tuple[np.ndarray, np.ndarray]]
+    p_d: np.ndarray | None = None  # (N, K) each agent's p_D of each true target (0 absent or occluded); not logged
 
 
 @dataclass
@@ -175,9 +180,27 @@ def confirmed(tracks: list[FusedTrack]) -> list[FusedTrack]:
     return sorted(sure, key=lambda f: (-f.estimate.existence, track_label(f)))
 
 
+def checked_swarm_actions(actions, positions: np.ndarray, displacements: np.ndarray, n_levels: int,
+                          low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """``(moves, levels, serves)`` as two int64 arrays and a list of texts, one per agent, or a
+    ValueError naming the argument: the moves and levels as the one-target engine checks them
+    (:func:`~trackjam.simulation.actions.checked_actions`), each served label a text."""
+    n = len(positions)
+    if not isinstance(actions, (tuple, list)) or len(actions) != 3:
+        raise ValueError(f"actions: expected a triple (moves, levels, serves) of {n} entries each, "
+                         f"got {bounded_repr(actions, 60)}")
+    moves, levels = checked_actions(actions[:2], positions, displacements, n_levels, low, high)
+    serves = actions[2]
+    if (isinstance(serves, (str, bytes)) or not isinstance(serves, (tuple, list, np.ndarray)) or len(serves) != n
+            or not all(isinstance(s, str) for s in serves)):
+        raise ValueError(f"actions: serves must be {n} track labels (texts, \"\" for none), got {bounded_repr(serves, 60)}")
+    return moves, levels, [str(s) for s in serves]
+
+
 class SwarmSimulation(Stepping):
     """A scenario with several targets run one step at a time; ``step()`` lets the configured
-    solver decide the moves, levels and served aims."""
+    solver decide the moves, levels and served aims, ``step((moves, levels, serves))`` applies
+    the given displacement and level indices and served track labels, one per agent."""
 
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
@@ -207,6 +230,8 @@ class SwarmSimulation(Stepping):
         self.log = SwarmLog([str(i) for i in c.ids])
         self.t = 0
         self.broken = None
+        # the team's confirmed tracks now (the cue's before the first step), what a controller may serve
+        self.sure = confirmed(fuse_tracks_unchecked([a.filter.estimates() for a in self.agents]))
 
     @property
     def done(self) -> bool:
@@ -216,25 +241,34 @@ class SwarmSimulation(Stepping):
     def positions(self) -> np.ndarray:
         return np.array([a.position for a in self.agents])
 
-    def step(self) -> SwarmRecord:
-        """One step; one that ends half done leaves the run broken until ``reset``
-        (:class:`~trackjam.simulation.engine.Stepping`)."""
+    def step(self, actions: tuple | None = None) -> SwarmRecord:
+        """One step; ``actions`` (moves, levels, serves) replace the team's decisions: a
+        displacement index, a level index and the label of the team track served (``""``: none,
+        the antenna keeps its last aim) per agent. One that ends half done leaves the run broken
+        until ``reset`` (:class:`~trackjam.simulation.engine.Stepping`)."""
         self._whole()
         b = self.c.base
         if self.done:
             raise RuntimeError(f"the run has ended (step {self.t} of {b.steps}); call reset()")
-        return self._guarded(self._step)
+        if actions is not None:  # refused before the step changes anything
+            actions = checked_swarm_actions(actions, self.positions, b.displacements, len(b.antenna.levels_w),
+                                            b.low, b.high)
+        return self._guarded(self._step, actions)
 
-    def _step(self) -> SwarmRecord:
+    def _step(self, actions: tuple | None = None) -> SwarmRecord:
         b = self.c.base
         t0 = time.perf_counter()
         self.t = t = self.t + 1
         truth = self.truth
         truth.step(t)
         predicted = fuse_tracks_unchecked([a.filter.predict() for a in self.agents])
-        aims = self._aims(t, predicted)
-        t_plan = time.perf_counter()
-        plan = self._plan(aims)
+        if actions is None:
+            aims = self._aims(t, predicted)
+            t_plan = time.perf_counter()
+            plan = self._plan(aims)
+        else:
+            t_plan = time.perf_counter()
+            aims, plan = self._given(predicted, *actions)
         solve_s = time.perf_counter() - t_plan
         prev = self.positions
         for a, move, k in zip(self.agents, plan["move"], plan["serve"]):
@@ -267,7 +301,7 @@ class SwarmSimulation(Stepping):
             self._feed_back(team)
         for a in self.agents:  # filter.response: each filter knows the team's transmissions of the step
             a.filter.note_jamming(positions, points, level_w)
-        sure = confirmed(team)
+        sure = self.sure = confirmed(team)
         if self.memory is not None:
             self.memory.remember(t, [(track_label(f), f.estimate.mean, f.estimate.cov) for f in sure])
         report = [f for f in sure if located(f.estimate.cov, b.report_spread)
@@ -301,6 +335,7 @@ class SwarmSimulation(Stepping):
                         interference_w=interference, jammed=interference >= b.antenna.delta_w,
                         to_targets_w=to_target.sum(axis=1), mode=[a.mode for a in self.agents]),
             scans=scans,
+            p_d=p_d,
         )
         self.log.add(record)
         return record
@@ -339,6 +374,31 @@ class SwarmSimulation(Stepping):
         return dict(mode="search" if all(a.search for a in aims) else "track", move=np.asarray(sol.move, dtype=np.int64),
                     level=np.asarray(sol.level, dtype=np.int64), serve=np.asarray(sol.target, dtype=np.int64),
                     objective=float(sol.objective), optimal=bool(sol.optimal), gap=float(sol.gap))
+
+    def _given(self, predicted: list[FusedTrack], moves: np.ndarray, levels: np.ndarray,
+               serves: list[str]) -> tuple[list[Aim], dict]:
+        """The given actions as the step's aims and plan: agent j serves the predicted team track
+        that holds the track labelled ``serves[j]`` (a team track's label is one of its members',
+        so a label read from the team's tracks after the last step finds its track again when
+        fusion regroups it); a label no predicted track holds (the track was pruned) or ``""``
+        serves nothing and the antenna keeps its last aim (mode ``hover``)."""
+        b = self.c.base
+        positions = self.positions
+        holder = {f"a{agent}:{born}.{i}": f for f in predicted for agent, (born, i) in f.members}
+        aims: list[Aim] = []
+        serve = np.full(len(self.agents), -1)
+        for j, label in enumerate(serves):
+            f = holder.get(label) if label else None
+            if f is None or f.estimate.mean is None:
+                continue
+            name = track_label(f)
+            k = next((k for k, a in enumerate(aims) if a.label == name), len(aims))
+            if k == len(aims):
+                m = f.estimate.mean
+                aims.append(Aim(name, m, f.estimate.cov, plan_point(m, positions, b.team.aim, b.low, b.high)))
+            serve[j] = k
+        return aims, dict(mode="external", move=moves, level=levels, serve=serve, objective=np.nan, optimal=False,
+                          gap=np.nan)
 
     def _points(self, aims: list[Aim], serve: np.ndarray) -> np.ndarray:
         """Where each antenna points: its aim, or under ``pointing: truth`` the true position of
