@@ -197,11 +197,18 @@ def test_a_huge_action_is_named_by_its_shape_not_printed(scenario):
         env.step(actions)
 
 
-def test_a_scenario_with_several_targets_is_refused_by_the_environment():
-    # the engine's message sent the user to SwarmSimulation, which has no environment
+def test_the_one_target_environment_sends_several_targets_to_parallel_env():
+    # the engine's message sent the user to SwarmSimulation; parallel_env now dispatches on the count
+    from trackjam.env import SwarmParallelEnv, TrackjamParallelEnv
     from trackjam.errors import ConfigError
 
     s = load_scenario("swarm-3", ["steps=2", "filter.particles=100", "filter.birth_particles=20"])
-    with pytest.raises(ConfigError, match=r"^parallel_env: the learning environment simulates one target; "
-                                          r"this scenario has 3 \(targets\)"):
-        parallel_env(s)
+    with pytest.raises(ConfigError, match=r"^TrackjamParallelEnv simulates one target; this scenario has 3 "
+                                          r"\(targets\): trackjam\.env\.parallel_env\(scenario\) gives"):
+        TrackjamParallelEnv(s)
+    assert type(parallel_env(s)) is SwarmParallelEnv
+    with pytest.raises(ConfigError, match=r"^SwarmParallelEnv runs the swarm engine, for several targets; "
+                                          r"this scenario has one"):
+        SwarmParallelEnv(load_scenario("paper-fig3", FAST))
+    with pytest.raises(ValueError, match=r"^track_slots: 3 given for a scenario with one target"):
+        parallel_env(load_scenario("paper-fig3", FAST), track_slots=3)

@@ -80,12 +80,7 @@ class TrackjamParallelEnv(ParallelEnv):
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
                  replay_path: str = "replay.html") -> None:
         is_scenario(scenario)
-        if len(scenario.target_list) > 1:  # the engine's refusal pointed at SwarmSimulation, which has no environment
-            raise ConfigError(
-                f"parallel_env: the learning environment simulates one target; this scenario has "
-                f"{len(scenario.target_list)} (targets). Several targets run through trackjam.simulate or "
-                "'trackjam run', not as an environment"
-            )
+        self._check_targets(scenario)
         # a penalty past MAX_JAM_PENALTY times the largest violation (about 1.7e4) overflows the reward to -inf
         if (isinstance(jam_penalty, bool) or not isinstance(jam_penalty, (int, float, np.integer, np.floating))
                 or not 0 <= jam_penalty <= MAX_JAM_PENALTY):
@@ -93,24 +88,42 @@ class TrackjamParallelEnv(ParallelEnv):
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode: {render_mode!r} is not one of {', '.join(RENDER_MODES)} (or None)")
         if render_mode == "replay":
-            _check_replay_path(replay_path)
+            self._check_replay(replay_path)
         self.scenario = scenario
         self.jam_penalty = float(jam_penalty)
         self.render_mode = render_mode
         self.replay_path = replay_path
-        self.sim = Simulation(scenario)
-        c = self.sim.c
-        self.possible_agents = [f"agent_{j}" for j in range(c.n_agents)]
+        self.sim = self._engine(scenario)
+        self.possible_agents = [f"agent_{j}" for j in range(len(scenario.agents.initial))]
         self.agents: list[str] = []
         self._index = {name: j for j, name in enumerate(self.possible_agents)}
+        self._spaces()
+        self._seed: int | None = None
+        self._solvers_ok: set[str] = set()
+        self._ended: str | None = NOT_STARTED
+
+    # -- what the one-target and the several-target environments do differently ---------------
+
+    def _check_targets(self, scenario: Scenario) -> None:
+        if len(scenario.target_list) > 1:  # parallel_env gives the several-target environment
+            raise ConfigError(
+                f"TrackjamParallelEnv simulates one target; this scenario has {len(scenario.target_list)} "
+                "(targets): trackjam.env.parallel_env(scenario) gives the several-target environment (SwarmParallelEnv)"
+            )
+
+    def _check_replay(self, path) -> None:
+        _check_replay_path(path)
+
+    def _engine(self, scenario: Scenario):
+        return Simulation(scenario)
+
+    def _spaces(self) -> None:
+        c = self.sim.c
         n_moves, n_levels = len(c.displacements), len(c.antenna.levels_w)
         lo, hi = observation_bounds(c.n_agents, c.low, c.high)
         self.action_spaces = {a: spaces.MultiDiscrete([n_moves, n_levels]) for a in self.possible_agents}
         self.observation_spaces = {a: spaces.Box(lo, hi, dtype=np.float32) for a in self.possible_agents}
         self.state_space = spaces.Box(*state_bounds(c.n_agents, c.low, c.high), dtype=np.float32)
-        self._seed: int | None = None
-        self._solvers_ok: set[str] = set()
-        self._ended: str | None = NOT_STARTED
 
     # -- spaces ----------------------------------------------------------------------------
 
@@ -128,13 +141,18 @@ class TrackjamParallelEnv(ParallelEnv):
         self._agent(agent)
         return self.action_spaces[agent]
 
+    @property
+    def solvers(self) -> dict:
+        """The registry of the solvers a ``Planned`` action may name (the one-target solvers)."""
+        return SOLVERS
+
     def check_solver(self, solver: str) -> None:
         """Refuse a solver the scenario's configuration would refuse with ``control.solver`` set
         to it: its settings are checked for the configured solver only, so GRASP's samples and
         iterations, past the work cap, ran for hours under another (and ``control.close_in``
         with greedy was ignored)."""
-        if solver not in SOLVERS:
-            raise ValueError(f"Planned: unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")
+        if solver not in self.solvers:
+            raise ValueError(f"Planned: unknown solver {solver!r}; choose from {', '.join(self.solvers)}")
         if solver == self.scenario.control.solver or solver in self._solvers_ok:
             return
         solver_allowed(self.scenario, solver)
@@ -154,27 +172,37 @@ class TrackjamParallelEnv(ParallelEnv):
         elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
             raise ValueError(f"reset(seed={seed!r}): the seed must be an integer in [0, 2^63 - 1]")
         self._seed = int(seed)
-        self.sim = Simulation(with_seed(self.scenario, self._seed))
+        self.sim = self._engine(with_seed(self.scenario, self._seed))
         self.agents = list(self.possible_agents)
         self._ended = None
-        obs = self._observations(received=[[] for _ in self.possible_agents])
-        return obs, {a: {"t": 0, "seed": self._seed, "action_mask": self._action_mask(self._index[a])}
+        obs = self._first_observations()
+        return obs, {a: {"t": 0, "seed": self._seed, "action_mask": self._action_mask(self._index[a]),
+                         **self._reset_info()}
                      for a in self.agents}
+
+    def _first_observations(self) -> dict:
+        return self._observations(received=[[] for _ in self.possible_agents])
+
+    def _reset_info(self) -> dict:
+        return {}
 
     def state(self) -> np.ndarray:
         """The global state, for a centralised critic (``trackjam.env.state_layout`` names its
         entries): every agent's position and filter estimate, the true target's state, whether
         it exists and is detectable, and the time. No agent observes it."""
-        if self._ended == NOT_STARTED:
-            raise RuntimeError("state() before reset(): call reset() to start an episode")
-        if self._ended == CLOSED:
-            raise RuntimeError("state() after close(): call reset() to start a new episode")
+        self._check_state()
         sim = self.sim
         truth = sim.truth
         positions = np.clip(sim.team.positions, sim.c.low, sim.c.high)
         estimates = [a.filter.estimate() for a in sim.team.agents]
         return global_state(positions, estimates, truth.state if truth.exists else None, truth.exists,
                             truth.detectable, sim.t / sim.c.steps)
+
+    def _check_state(self) -> None:
+        if self._ended == NOT_STARTED:
+            raise RuntimeError("state() before reset(): call reset() to start an episode")
+        if self._ended == CLOSED:
+            raise RuntimeError("state() after close(): call reset() to start a new episode")
 
     def _action_mask(self, j: int) -> np.ndarray:
         """Agent j's action mask, MultiDiscrete-style: the moves (``len(displacements)`` entries)

@@ -12,7 +12,6 @@ from collections.abc import Callable, Iterable, Sized
 
 import numpy as np
 
-from trackjam.control.solve import SOLVERS
 from trackjam.env.parallel import MAX_SEED, Planned, TrackjamParallelEnv
 
 Policy = Callable[[dict], dict]
@@ -23,10 +22,11 @@ RANDOM_POLICY_WORD = 1
 
 def solver_policy(env: TrackjamParallelEnv, solver: str) -> Policy:
     """The team's plan by ``solver`` (one of greedy, grasp, exact), decided by the engine inside
-    the step: the run is the one :func:`trackjam.simulate` gives with that solver and seed."""
+    the step: the run is the one :func:`trackjam.simulate` gives with that solver and seed (with
+    several targets, the swarm engine's moves, levels and served tracks)."""
     _check_env(env, "solver_policy")
-    if not isinstance(solver, str) or solver not in SOLVERS:  # a list was "unhashable type"
-        raise ValueError(f"solver_policy: unknown solver {solver!r:.40}; choose from {', '.join(SOLVERS)}")
+    if not isinstance(solver, str) or solver not in env.solvers:  # a list was "unhashable type"
+        raise ValueError(f"solver_policy: unknown solver {solver!r:.40}; choose from {', '.join(env.solvers)}")
     env.check_solver(solver)  # with the scenario's settings for it (GRASP's work cap, close_in)
     action = Planned(solver)
 

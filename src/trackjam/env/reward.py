@@ -9,6 +9,13 @@ reward_t = Xi^N_n(p_D^1, ..., p_D^N) - lambda * sum_i v_i, shared by every agent
 - v_i = 0 when agent i receives R_i < delta from its teammates (Eq. 13 holds), else
   1 + log10(R_i / delta): a jammed agent costs at least lambda, and one more per decade of excess;
 - lambda is ``jam_penalty`` (default 1: one jammed agent outweighs the best detection).
+
+With several targets (:class:`trackjam.env.swarm.SwarmParallelEnv`) the objective is summed over
+the targets: reward_t = sum_k Xi^N_n(p_D^1k, ..., p_D^Nk) - lambda * sum_i v_i, p_D^jk agent j's
+Eq. (9) at target k's true position (0 while k is absent or occluded, so such a target adds 0),
+every agent counted whichever track its cone serves: a detection by an agent aimed elsewhere is
+a detection. The sum, not the mean, so that losing a target never raises the reward, and one
+step's reward lies in [-lambda sum_i v_i, K].
 """
 
 from __future__ import annotations
@@ -31,6 +38,14 @@ def reward_terms(p_d: np.ndarray, interference_w: np.ndarray, delta_w: float,
                  at_least: int) -> tuple[float, np.ndarray]:
     """Xi^N_n at the truth and every agent's violation v_i."""
     xi = float(at_least_probability(np.asarray(p_d, dtype=float), at_least))
+    return xi, violation(interference_w, delta_w)
+
+
+def swarm_reward_terms(p_d: np.ndarray, interference_w: np.ndarray, delta_w: float,
+                       at_least: int) -> tuple[np.ndarray, np.ndarray]:
+    """Xi^N_n at each true target (``p_d`` (N, K): each agent's p_D of each target) and every
+    agent's violation v_i."""
+    xi = np.asarray(at_least_probability(np.asarray(p_d, dtype=float).T, at_least), dtype=float)
     return xi, violation(interference_w, delta_w)
 
 
