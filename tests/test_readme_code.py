@@ -36,9 +36,10 @@ def _run(code: str, cwd: Path) -> str:
 
 
 def test_the_readme_has_the_python_blocks_these_tests_run():
-    # six blocks: the API, step by step, reading a run's files, the environment, the comparison
-    # by seed, an experiment of one's own; a new block must be added to a test below
-    assert len(BLOCKS) == 6
+    # seven blocks: the API, step by step, reading a run's files, the environment, the comparison
+    # by seed, the environment on several targets, an experiment of one's own; a new block must
+    # be added to a test below
+    assert len(BLOCKS) == 7
 
 
 def test_the_block_that_reads_a_runs_files_runs_as_written_and_agrees_with_the_summary(tmp_path):
@@ -64,12 +65,19 @@ def test_the_python_api_blocks_run_as_written(tmp_path):
 
 
 def test_the_learning_environment_blocks_run_as_written(tmp_path):
-    env_block = _block("parallel_env(")
+    env_block = _block('parallel_env(trackjam.load_scenario("paper-fig3")')
     compare = _block("rollout(env, my_policy, seeds)")
     code = env_block + "\n" + compare + "\nprint(len(paired), result.summary['steps'])\n"
     out = _run(code, tmp_path)
     n, steps = out.split()
     assert int(n) == 10 and int(steps) >= 1
+
+
+def test_the_several_target_environment_block_runs_as_written(tmp_path):
+    out = _run(_block("swarm_observation_layout(len(env.possible_agents)"), tmp_path)
+    slots, xi = out.split("]", 1)
+    assert slots.startswith("[") and len(slots.split(",")) == 4  # swarm-3's four slots
+    assert len(xi.strip().strip("[]").split()) == 3  # one Xi per target
 
 
 def test_the_docs_swarm_3_table_is_what_the_run_prints(tmp_path):

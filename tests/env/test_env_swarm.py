@@ -357,3 +357,16 @@ def test_render_draws_the_swarm_figure_and_the_replay_is_refused(monkeypatch):
     env.close()
     with pytest.raises(RuntimeError, match="after close"):
         env.render()
+
+
+def test_the_episode_terminates_once_every_target_has_left_the_area():
+    env = two_env("targets=[{id: a, initial: [99, 50, 50, 4, 0, 0], walls: leave}, "
+                  "{id: b, initial: [99, 20, 20, 4, 0, 0], walls: leave}]")
+    env.reset(seed=1)
+    _, _, term, trunc, _ = env.step({a: np.array([0, 0, 0]) for a in env.agents})  # both appear at x = 99
+    assert not any(term.values()) and not any(trunc.values())
+    _, _, term, trunc, info = env.step({a: np.array([0, 0, 0]) for a in env.agents})
+    assert term == dict.fromkeys(env.possible_agents, True) and not any(trunc.values())
+    assert info["agent_2"]["end"] == "every target downed or gone by step 2" and env.agents == []
+    with pytest.raises(RuntimeError, match="every target downed or gone by step 2.*call reset"):
+        env.step({a: np.array([0, 0, 0]) for a in env.possible_agents})
