@@ -370,3 +370,17 @@ def test_the_episode_terminates_once_every_target_has_left_the_area():
     assert info["agent_2"]["end"] == "every target downed or gone by step 2" and env.agents == []
     with pytest.raises(RuntimeError, match="every target downed or gone by step 2.*call reset"):
         env.step({a: np.array([0, 0, 0]) for a in env.possible_agents})
+
+
+def test_a_pickled_environment_goes_on_as_the_original_does():
+    # mid-episode, e.g. to hand it to a worker process: the copy holds the slots and the streams
+    import pickle
+
+    env = two_env()
+    env.reset(seed=2)
+    env.step({a: np.array([0, 1, 1]) for a in env.agents})
+    copy = pickle.loads(pickle.dumps(env))
+    actions = {a: np.array([1, 2, 2]) for a in env.agents}
+    a, b = env.step(actions), copy.step(actions)
+    assert all(np.array_equal(a[0][k], b[0][k]) for k in a[0]) and a[1] == b[1]
+    assert [i["served"] for i in a[4].values()] == [i["served"] for i in b[4].values()]

@@ -6,7 +6,9 @@ transmit levels L (0 = the lowest, "off" in the paper). A move that would take a
 the area is not admissible (the model document): the agent hovers instead and its info says
 ``hovered: True``. Observations: :mod:`trackjam.env.observation`; reward:
 :mod:`trackjam.env.reward`. An episode terminates when the target is downed (``target.response``)
-or has flown out of the area (``target.walls: leave``), and is truncated after ``steps``.
+or has flown out of the area (``target.walls: leave``), and is truncated after ``steps``. Several
+targets: :class:`trackjam.env.swarm.SwarmParallelEnv`, this class over the swarm engine, which
+overrides the hooks below (engine, spaces, observations, actions, outcome, rendering).
 """
 
 from __future__ import annotations
