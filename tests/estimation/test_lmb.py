@@ -452,3 +452,42 @@ def test_a_certain_track_that_is_never_missed_stays_certain(method):
                                    np.random.default_rng(0), method)
     assert e == 1.0 and post.r == 1.0
     np.testing.assert_allclose(np.exp(post.log_w), np.exp(log_post), atol=1e-12)
+
+
+@pytest.mark.parametrize("method,misses", [("gibbs", False), ("gibbs", True), ("ranked", False)])
+def test_an_empty_scan_lowers_each_tracks_existence_by_its_closed_form(method, misses):
+    """No measurement, several overlapping tracks: the only joint hypothesis is every track
+    undetected, so each track is updated alone, r' = r q / (1 - r + r q) with q = <1 - p_D>, and
+    its density is w (1 - p_D) normalised (hand formula, not the Bernoulli code); r = 1 stays 1."""
+    rng = np.random.default_rng(5)
+    tracks = [Track((1, i), r, X_HAND + np.hstack([rng.normal(0, 0.3, (4, 3)), np.zeros((4, 3))]), np.log(W_HAND))
+              for i, r in enumerate([0.02, 0.4, 0.9, 1.0])]
+    post, beta, r_U = lmb_update(tracks, scan(np.zeros((0, 3))), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(1),
+                                 method, misses=misses)
+    assert beta.shape == (4, 1) and np.all(beta == 1.0) and r_U.shape == (0,)
+    for t, p in zip(tracks, post):
+        p_d = detection_probability(t.X[:, :3], U, AIM, ANT.l_max, ANT)
+        assert 0.0 < p_d[:3].min() and p_d[3] == 0.0  # three particles in the cone, one outside
+        q = W_HAND @ (1 - p_d)
+        assert p.label == t.label and p.r == pytest.approx(t.r * q / (1 - t.r + t.r * q), rel=1e-12)
+        np.testing.assert_allclose(np.exp(p.log_w), W_HAND * (1 - p_d) / q, atol=1e-14)
+
+
+def test_births_are_labelled_by_the_step_they_enter_and_no_label_repeats():
+    """A measurement of scan t that no track explains starts a track labelled (t + 1, j), j the
+    measurement's index in that scan; it waits outside ``tracks`` until the next prediction, enters
+    with its r_B (no p_s), and over a run no label is given twice, pruned or not."""
+    f = LMBFilter(params(particles=200, birth_particles=200, birth_rate=0.5, birth_existence_max=0.4), ANT,
+                  np.random.default_rng(3))
+    rng = np.random.default_rng(4)
+    given, births = set(), {}
+    for t in range(1, 8):
+        f.predict()
+        assert f.step == t
+        assert {tr.label: tr.r for tr in f.tracks if tr.label in births} == births  # every birth entered, r_B
+        Z = np.array([h(U + rng.uniform(4.0, 9.0) * AX, U) + rng.normal(0, 1, 3) * SIGMA for _ in range(2)])
+        f.update(Z, U, AIM, ANT.l_max)
+        births = {b.label: b.r for b in f._births}
+        assert births and all(label[0] == t + 1 and label[1] in (0, 1) for label in births)
+        assert not given & set(births) and not any(tr.label in births for tr in f.tracks)
+        given |= set(births) | {tr.label for tr in f.tracks}

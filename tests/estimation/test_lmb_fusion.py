@@ -130,3 +130,19 @@ def test_association_is_the_best_matching(pa, pb):
 
 def test_no_tracks():
     assert fuse_tracks([[], []]) == []
+
+
+@pytest.mark.parametrize("agents", [2, 3, 5])
+def test_fusing_copies_of_one_track_gives_it_back(agents):
+    """Every agent holds the same track (a full, correlated covariance): one cluster whose fused
+    existence, mean and covariance are the track's (rule ``mean``; covariance intersection of
+    equal estimates is the estimate), whatever the weights."""
+    rng = np.random.default_rng(agents)
+    A = rng.normal(size=(6, 6))
+    t = TrackEstimate((2, 0), 0.83, rng.uniform(0, 100, 6), A @ A.T + 0.1 * np.eye(6))
+    (f,) = fuse_tracks([[t] for _ in range(agents)])
+    assert f.members == tuple((a, (2, 0)) for a in range(agents))
+    assert f.estimate.existence == pytest.approx(t.existence, abs=1e-15)
+    np.testing.assert_allclose(f.estimate.mean, t.mean, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(f.estimate.cov, t.cov, rtol=1e-12, atol=1e-12)
+    assert f.estimate.weights.sum() == pytest.approx(1.0)

@@ -201,3 +201,31 @@ def test_bad_shapes_are_refused():
         gated_assignment(np.zeros((1, 3)), np.zeros((1, 3)), 0.0)
     with pytest.raises(ValueError, match="ids"):
         multi_track_quality(np.zeros((1, 2, 3)), [([], np.zeros((0, 3)))], ids=[1])
+
+
+def test_two_tracks_on_one_target_and_one_track_between_two():
+    """Two tracks on one target: the nearer holds it, the other is a false track. One track
+    between two targets, within the gate of both: it holds the nearer, the other is missed,
+    and nothing is false. A target not yet present (NaN) is neither held nor missed, and a
+    track near where it will appear is false."""
+    nan = [np.nan] * 3
+    truth = np.array([
+        [[0.0, 0, 0], [40.0, 0, 0]],
+        [[0.0, 0, 0], [6.0, 0, 0]],
+        [[0.0, 0, 0], nan],
+    ])
+    est = [
+        (["A", "B"], [[1.0, 0, 0], [0.0, 2, 0]]),
+        (["A"], [[2.5, 0, 0]]),
+        (["A", "B"], [[0.5, 0, 0], [40.0, 0, 0]]),
+    ]
+    classes, false_tracks, holder = target_classes(truth, est, gate=5.0)
+    assert classes.tolist() == [[HELD, MISSED], [HELD, MISSED], [HELD, UNDETECTABLE]]
+    assert false_tracks.tolist() == [1, 0, 1]
+    assert [list(h) for h in holder] == [["A", None], ["A", None], ["A", None]]
+    q = multi_track_quality(truth, est, gate=5.0)
+    assert q["detectable_steps"] == [3, 2] and q["held_steps"] == [3, 0] and q["missed_steps"] == [0, 2]
+    assert q["false_track_steps"] == 2 and q["false_tracks"] == 2
+    ospa = ospa_series(truth, est)
+    # step 3: one target, two tracks: loc^2 = 0.5^2 / 2, card^2 = 10^2 / 2
+    assert ospa[2] == pytest.approx([math.sqrt((0.25 + 100) / 2), math.sqrt(0.125), math.sqrt(50)])
