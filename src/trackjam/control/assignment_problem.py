@@ -8,7 +8,8 @@ target an agent serves changes the interference only through that pointing direc
 Per target, n applies as n_k = min(n, m_k), m_k the number of agents serving k (every agent
 serves one target, whatever its level): Xi_k = P(at least n_k of the m_k agents serving k
 detect k), and Xi_k = 0 for a target nobody serves. Fewer servers than n must therefore all
-detect, so a target is never worth more for being served by fewer. The team objective is
+detect, so below n each added server lowers Xi_k (n = 2: one server gives p_1, two p_1 p_2);
+from n servers on, each added one raises it. The team objective is
 ``sum`` (sum_k Xi_k) or ``min`` (min_k Xi_k: no target left alone; 0 whenever N < K). With one
 target (m_1 = N >= n) both are Eq. (12)'s Xi^N_n, bit for bit.
 

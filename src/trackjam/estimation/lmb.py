@@ -1,7 +1,8 @@
 """One agent's labelled multi-Bernoulli (LMB) particle filter (Reuter, Vo, Vo & Dietmayer, IEEE
 TSP 2014) whose tracks are the Bernoulli components of Section V-A (ours: several targets).
 
-A track is a label (the step it was born, its index among that step's births), an existence r
+A track is a label (the step it entered the filter, the index in the previous step's scan of
+the measurement that started it; (0, k): the cue's track of target k), an existence r
 and a weighted particle set of the 6-D state. Prediction: r <- p_s r, each particle moved by
 Eq. (1) (and the walls, as in the Bernoulli filter). Update with one scan: the weights eta of
 :mod:`trackjam.estimation.lmb_association` from the per-particle p_D (Eq. 9) and
