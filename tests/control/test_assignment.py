@@ -1,6 +1,8 @@
 """The K-target decision: its objective (closed forms, the compiled twin, Eq. 12 at K = 1), the
 exact solver against full enumeration, and every solver at K = 1 against today's solver."""
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -20,7 +22,7 @@ from trackjam.control.assignment_problem import (
     target_xi,
 )
 from trackjam.control.exact import pair_order, solve_exact
-from trackjam.control.objective import evaluate
+from trackjam.control.objective import at_least_probability, evaluate
 from trackjam.control.solve import SOLVERS, solve
 
 from control_instances import HIGH, LOW, small_displacements, tiny_displacements
@@ -279,3 +281,24 @@ def test_agents_are_placed_by_what_they_add_to_the_targets_coverage(antenna):
         assert best[order[0]].max() == best.max()
         miss = 1.0 - best[order[0]]
         assert (best[order[1]] * miss).max() == max((best[j] * miss).max() for j in order[1:])
+
+
+@pytest.mark.parametrize("objective", ["sum", "min"])
+def test_exact_without_the_constraints_equals_the_best_split_of_the_agents(antenna, objective):
+    """Larger teams than the enumeration reaches (N = 4-5, K = 2-4): without Eq. (13) each agent
+    serving k takes its best p_D at x_bar_k (Xi_k rises with every p_D at a fixed split), so the
+    optimum is the best over the K^N splits of the agents of sum or min_k Xi_k, n_k = min(n, m_k),
+    computed here from the closed form at_least_probability."""
+    rng = np.random.default_rng(17 if objective == "sum" else 18)
+    for trial in range(6):
+        N, K, n = 4 + trial % 2, 2 + trial % 3, 1 + trial % 2
+        P = random_assignment(rng, antenna, N, K, n, False, objective, small_displacements(), spread=8.0)
+        best = np.array([t.p_d.reshape(N, -1).max(axis=1) for t in P.targets])  # (K, N)
+        optimum = 0.0
+        for split in itertools.product(range(K), repeat=N):
+            split = np.array(split)
+            xi = [float(at_least_probability(best[k][split == k], min(n, int((split == k).sum()))))
+                  if (split == k).any() else 0.0 for k in range(K)]
+            optimum = max(optimum, sum(xi) if objective == "sum" else min(xi))
+        sol = solve_assignment_exact(P)
+        assert sol.optimal and sol.objective == pytest.approx(optimum, abs=1e-12)
