@@ -212,3 +212,90 @@ def test_the_one_target_environment_sends_several_targets_to_parallel_env():
         SwarmParallelEnv(load_scenario("paper-fig3", FAST))
     with pytest.raises(ValueError, match=r"^track_slots: 3 given for a scenario with one target"):
         parallel_env(load_scenario("paper-fig3", FAST), track_slots=3)
+
+
+def _two_targets_env():
+    from swarm_scenarios import two_targets
+
+    return parallel_env(two_targets("steps=3"))
+
+
+BOTH = pytest.mark.parametrize("make", [lambda: parallel_env(load_scenario("paper-fig3", FAST)), _two_targets_env],
+                               ids=["one-target", "two-targets"])
+
+
+@BOTH
+@pytest.mark.parametrize("bad", [[[0], [1, 2]], [[0, 1], [2]]])
+def test_a_ragged_action_names_the_agent_in_both_environments(make, bad):
+    # the one-target environment passed numpy's "inhomogeneous shape" ValueError on, naming no agent
+    env = make()
+    env.reset(seed=1)
+    n = len(env.action_space("agent_0").nvec)
+    actions = {a: np.zeros(n, dtype=int) for a in env.agents}
+    actions["agent_1"] = bad
+    with pytest.raises(ValueError, match=r"^agent_1: action \[\[.*\]\] is outside the action space"):
+        env.step(actions)
+    assert env.sim.t == 0
+
+
+@BOTH
+@pytest.mark.parametrize("bad", [np.array([np.nan, 0, 0]), np.array([0.0, 1.0, 1.0]), np.array([0, -2, 1]),
+                                 np.array([0, 0, 1], dtype=np.uint64) - np.uint64(2), None, {"move": 0}])
+def test_a_float_nan_negative_or_shapeless_action_names_the_agent_and_steps_nothing(make, bad):
+    env = make()
+    env.reset(seed=1)
+    n = len(env.action_space("agent_0").nvec)
+    bad = bad[:n] if isinstance(bad, np.ndarray) else bad
+    actions = {a: np.zeros(n, dtype=int) for a in env.agents}
+    actions["agent_2"] = bad
+    with pytest.raises(ValueError, match=r"^agent_2: action .* is outside the action space MultiDiscrete"):
+        env.step(actions)
+    assert env.sim.t == 0
+    actions["agent_2"] = np.ones(n, dtype=np.int8)  # any integer dtype inside the space is an action
+    env.step(actions)
+    assert env.sim.t == 1
+
+
+@BOTH
+def test_a_planned_action_beside_another_names_the_agent_that_breaks_the_team_plan(make):
+    from trackjam.env import Planned
+
+    env = make()
+    env.reset(seed=1)
+    n = len(env.action_space("agent_0").nvec)
+    mixed = {a: Planned("greedy") for a in env.agents}
+    mixed["agent_1"] = [0] * n
+    # it said "a solver plans for the whole team" without the agent or its action
+    with pytest.raises(ValueError, match=rf"^agent_1: action \[{', '.join(['0'] * n)}\] is not "
+                                         r"Planned\(solver='greedy'\), which another agent has: a solver plans for "
+                                         r"the whole team"):
+        env.step(mixed)
+    mixed["agent_1"] = Planned("exact")
+    with pytest.raises(ValueError, match=r"^agent_1: action Planned\(solver='exact'\) is not "
+                                         r"Planned\(solver='greedy'\)"):
+        env.step(mixed)
+    assert env.sim.t == 0
+
+
+@BOTH
+@pytest.mark.parametrize("options", ["fast", 5, [("a", 1)]])
+def test_reset_options_that_are_not_a_dict_are_named(make, options):
+    # they were accepted silently, as a dict is (and not read)
+    env = make()
+    with pytest.raises(ValueError, match=r"^reset\(options=.*\): options must be a dict or None"):
+        env.reset(seed=1, options=options)
+    env.reset(seed=1, options={"anything": 1})
+    assert env.sim.t == 0 and env.agents
+
+
+def test_the_several_target_class_takes_no_slots_as_the_default_as_parallel_env_does():
+    # parallel_env(track_slots=None) was the default while SwarmParallelEnv(track_slots=None) was refused
+    from swarm_scenarios import two_targets
+
+    from trackjam.env import SwarmParallelEnv
+    from trackjam.simulation.swarm import MAX_AIMS
+
+    env = SwarmParallelEnv(two_targets("steps=2"), track_slots=None)
+    assert env.track_slots == MAX_AIMS == parallel_env(two_targets("steps=2")).track_slots
+    with pytest.raises(ValueError, match=r"^actions: expected a dict \{agent: \[move, level, track slot\]\}, got list"):
+        env.reset(seed=1) and env.step([[0, 0, 0]] * 3)

@@ -26,17 +26,21 @@ __all__ = ["Planned", "SwarmParallelEnv", "TrackjamParallelEnv", "observation_la
 
 
 def parallel_env(scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
-                 replay_path: str = "replay.html", track_slots: int | None = None) -> TrackjamParallelEnv:
+                 replay_path: str = "replay.html", track_slots: int | None = None,
+                 render_size: tuple[int, int] | None = None) -> TrackjamParallelEnv:
     """The team as a PettingZoo ``ParallelEnv`` on ``scenario`` (a :class:`Scenario`, e.g. from
     :func:`trackjam.load_scenario`); ``jam_penalty`` is lambda of the reward. A scenario with
     several ``targets`` gives a :class:`SwarmParallelEnv` (the swarm engine), whose agents
     observe and may serve ``track_slots`` of the team's tracks (default 4); one target gives a
-    :class:`TrackjamParallelEnv`, which has no slots."""
+    :class:`TrackjamParallelEnv`, which has no slots. ``render_size`` = (width, height) makes
+    ``render()`` under ``render_mode="rgb_array"`` return a frame of that many pixels (the
+    figure scaled to fit, its aspect kept) instead of the whole figure."""
     is_scenario(scenario)
     if len(scenario.target_list) > 1:
         return SwarmParallelEnv(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path,
-                                **({} if track_slots is None else {"track_slots": track_slots}))
+                                track_slots=track_slots, render_size=render_size)
     if track_slots is not None:
         raise ValueError(f"track_slots: {track_slots!r:.40} given for a scenario with one target; the slots are "
                          "the several-target environment's (an action there names the track it serves)")
-    return TrackjamParallelEnv(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path)
+    return TrackjamParallelEnv(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path,
+                               render_size=render_size)

@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads i
     from trackjam.simulation.build import Scenario
 
 RENDER_MODES = ("rgb_array", "replay")
+MAX_RENDER_SIDE = 4096  # pixels: a render_size frame holds at most 4096 x 4096 x 3 bytes (48 MiB)
 MAX_JAM_PENALTY = 1e6
 MAX_SEED = 2**63 - 1  # the scenario's seed bound
 NOT_STARTED = "not started"
@@ -49,6 +50,54 @@ def _shown(action) -> str:
     if isinstance(action, np.ndarray):
         return bounded_repr(action.tolist(), 60) if action.size <= 64 else f"an array of shape {action.shape}"
     return bounded_repr(action, 60)
+
+
+def checked_action(name: str, action, space: spaces.MultiDiscrete, words: str) -> np.ndarray:
+    """Agent ``name``'s ``action`` as an int64 array, or one ValueError naming the agent and the
+    value: the shape, an integer dtype (a float, NaN or bool is not an index even when numpy
+    would cast it to one), and the space's bounds."""
+    try:
+        a = np.asarray(action)
+    except (ValueError, TypeError, OverflowError):  # ragged nested lists: numpy's own words, no agent
+        a = np.asarray(None)
+    bad = a.shape != space.nvec.shape or a.dtype.kind not in "iu" or has_bool(action)  # numpy reads True as 1
+    if bad or not space.contains(a.astype(space.dtype)):
+        raise ValueError(f"{name}: action {_shown(action)} is outside the action space "
+                         f"MultiDiscrete({space.nvec.tolist()}) ({words} indices)")
+    return a.astype(np.int64)
+
+
+def checked_render_size(render_size, render_mode) -> tuple[int, int] | None:
+    """``render_size`` as (width, height) in pixels, each a whole number in [1, MAX_RENDER_SIDE],
+    given only with ``render_mode="rgb_array"`` (the replay is a file, and without a mode
+    render() draws nothing); None: the whole figure."""
+    if render_size is None:
+        return None
+    shown = bounded_repr(render_size.tolist() if isinstance(render_size, np.ndarray) else render_size, 60)
+    if render_mode != "rgb_array":
+        raise ValueError(f"render_size: {shown} given with render_mode={render_mode!r}; it sizes the frames of "
+                         "render_mode='rgb_array'")
+    ok = isinstance(render_size, (tuple, list, np.ndarray)) and len(render_size) == 2 and all(
+        not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, np.integer)) and 1 <= v <= MAX_RENDER_SIDE
+        for v in render_size)
+    if not ok:
+        raise ValueError(f"render_size: expected (width, height), two whole numbers of pixels in [1, "
+                         f"{MAX_RENDER_SIDE}], got {shown}")
+    return int(render_size[0]), int(render_size[1])
+
+
+def fitted(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """The (H, W, 3) uint8 frame ``img`` scaled to fit ``size`` = (W, H), its aspect kept, centred
+    on white."""
+    from PIL import Image
+
+    w, h = size
+    scale = min(w / img.shape[1], h / img.shape[0])
+    inner = (min(w, max(1, round(img.shape[1] * scale))), min(h, max(1, round(img.shape[0] * scale))))
+    small = Image.fromarray(img).resize(inner, Image.Resampling.LANCZOS)
+    frame = Image.new("RGB", (w, h), (255, 255, 255))
+    frame.paste(small, ((w - inner[0]) // 2, (h - inner[1]) // 2))
+    return np.array(frame, dtype=np.uint8)
 
 
 def _check_replay_path(path) -> None:
@@ -78,9 +127,10 @@ class Planned:
 
 class TrackjamParallelEnv(ParallelEnv):
     metadata = {"name": "trackjam_v0", "render_modes": list(RENDER_MODES), "render_fps": 1}
+    ACTION_WORDS = "[move, level]"
 
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
-                 replay_path: str = "replay.html") -> None:
+                 replay_path: str = "replay.html", render_size: tuple[int, int] | None = None) -> None:
         is_scenario(scenario)
         self._check_targets(scenario)
         # a penalty past MAX_JAM_PENALTY times the largest violation (about 1.7e4) overflows the reward to -inf
@@ -91,6 +141,7 @@ class TrackjamParallelEnv(ParallelEnv):
             raise ValueError(f"render_mode: {render_mode!r} is not one of {', '.join(RENDER_MODES)} (or None)")
         if render_mode == "replay":
             self._check_replay(replay_path)
+        self.render_size = checked_render_size(render_size, render_mode)
         self.scenario = scenario
         self.jam_penalty = float(jam_penalty)
         self.render_mode = render_mode
@@ -172,7 +223,10 @@ class TrackjamParallelEnv(ParallelEnv):
             # before the first reset, self.sim runs on the scenario's own seed
             seed = self.sim.c.seed if self._seed is None else (self._seed + 1) % (MAX_SEED + 1)
         elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
-            raise ValueError(f"reset(seed={seed!r}): the seed must be an integer in [0, 2^63 - 1]")
+            raise ValueError(f"reset(seed={bounded_repr(seed, 60)}): the seed must be an integer in [0, 2^63 - 1]")
+        if options is not None and not isinstance(options, Mapping):
+            raise ValueError(f"reset(options={bounded_repr(options, 60)}): options must be a dict or None "
+                             "(it is accepted for the API and not read)")
         self._seed = int(seed)
         self.sim = self._engine(with_seed(self.scenario, self._seed))
         self.agents = list(self.possible_agents)
@@ -222,7 +276,7 @@ class TrackjamParallelEnv(ParallelEnv):
         if not self.agents:
             raise RuntimeError(f"step() after the episode ended ({self._ended}); call reset()")
         if not isinstance(actions, Mapping):
-            raise ValueError(f"actions: expected a dict {{agent: [move, level]}}, got {type(actions).__name__}")
+            raise ValueError(f"actions: expected a dict {{agent: {self.ACTION_WORDS}}}, got {type(actions).__name__}")
         for name in actions:
             self._agent(name)
         missing = [a for a in self.agents if a not in actions]
@@ -230,6 +284,12 @@ class TrackjamParallelEnv(ParallelEnv):
             raise ValueError(f"no action for {missing[0]}: every agent acts at every step")
         planned = [actions[a] for a in self.agents if isinstance(actions[a], Planned)]
         if planned:
+            first = planned[0]
+            for name in self.agents:  # a solver plans for all: one agent's own action would be dropped
+                if not (isinstance(actions[name], Planned) and actions[name].solver == first.solver):
+                    raise ValueError(f"{name}: action {_shown(actions[name])} is not {first!r}, which another "
+                                     "agent has: a solver plans for the whole team; give every agent the same "
+                                     "Planned action")
             record, hovered = self._planned_step(planned), np.zeros(len(self.agents), dtype=bool)
         else:
             record, hovered = self._external_step(actions)
@@ -240,15 +300,8 @@ class TrackjamParallelEnv(ParallelEnv):
         moves = np.zeros(len(self.possible_agents), dtype=np.int64)
         levels = np.zeros(len(self.possible_agents), dtype=np.int64)
         for name in self.agents:
-            j, space = self._index[name], self.action_spaces[name]
-            a = np.asarray(actions[name])
-            bad = a.shape != (2,) or a.dtype.kind not in "iu" or has_bool(actions[name])  # numpy reads True as 1
-            if bad or not space.contains(a.astype(space.dtype)):
-                raise ValueError(
-                    f"{name}: action {_shown(actions[name])} is outside the action space "
-                    f"MultiDiscrete({space.nvec.tolist()}) ([move, level] indices)"
-                )
-            moves[j], levels[j] = int(a[0]), int(a[1])
+            j = self._index[name]
+            moves[j], levels[j] = checked_action(name, actions[name], self.action_spaces[name], self.ACTION_WORDS)
         positions = self.sim.team.positions
         hovered = np.array([
             not admissible_moves(positions[j], c.displacements[moves[j] : moves[j] + 1], c.low, c.high)[0]
@@ -345,7 +398,11 @@ class TrackjamParallelEnv(ParallelEnv):
         with tempfile.TemporaryDirectory() as tmp:
             png = plot_run(res.steps, res.agents, settings, Path(tmp) / "run.png")
             img = matplotlib.image.imread(png)
-        return np.round(img[..., :3] * 255).astype(np.uint8)
+        return self._frame(np.round(img[..., :3] * 255).astype(np.uint8))
+
+    def _frame(self, img: np.ndarray) -> np.ndarray:
+        """The figure's pixels, fitted to ``render_size`` when one was given."""
+        return img if self.render_size is None else fitted(img, self.render_size)
 
     def _acted(self, modes) -> str:
         """Who chose the episode's actions, for the figure's title: the solver that planned

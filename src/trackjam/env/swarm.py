@@ -23,7 +23,7 @@ import numpy as np
 from gymnasium import logger, spaces
 
 from trackjam.control.assignment import ASSIGNMENT_SOLVERS
-from trackjam.env.parallel import CLOSED, Planned, TrackjamParallelEnv, _shown
+from trackjam.env.parallel import CLOSED, Planned, TrackjamParallelEnv, checked_action
 from trackjam.env.reward import swarm_reward_terms, team_reward
 from trackjam.env.swarm_observation import (
     checked_slots,
@@ -33,7 +33,6 @@ from trackjam.env.swarm_observation import (
     swarm_state_bounds,
 )
 from trackjam.errors import ConfigError
-from trackjam.simulation.actions import has_bool
 from trackjam.simulation.build import figure_settings
 from trackjam.simulation.swarm import MAX_AIMS, SwarmRecord, SwarmSimulation, track_label
 from trackjam.world.moves import admissible_moves
@@ -51,15 +50,18 @@ def member_labels(track: FusedTrack) -> set[str]:
 
 class SwarmParallelEnv(TrackjamParallelEnv):
     """The team against several targets; ``track_slots`` (M) is how many of the team's confirmed
-    tracks an agent observes and may serve (default: as many as the engine plans at, 4)."""
+    tracks an agent observes and may serve (default, or None: as many as the engine plans at, 4)."""
 
     metadata = {"name": "trackjam_swarm_v0", "render_modes": ["rgb_array"], "render_fps": 1}
+    ACTION_WORDS = "[move, level, track slot]"
 
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
-                 replay_path: str = "replay.html", track_slots: int = MAX_AIMS) -> None:
-        self.track_slots = checked_slots(track_slots)
+                 replay_path: str = "replay.html", track_slots: int | None = MAX_AIMS,
+                 render_size: tuple[int, int] | None = None) -> None:
+        self.track_slots = checked_slots(MAX_AIMS if track_slots is None else track_slots)
         self._slot_labels: list[str] = []  # the label each occupied slot showed in the last observation
-        super().__init__(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path)
+        super().__init__(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path,
+                         render_size=render_size)
 
     # -- the hooks of TrackjamParallelEnv ----------------------------------------------------
 
@@ -133,18 +135,9 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         n = len(self.possible_agents)
         moves, levels, slots = (np.zeros(n, dtype=np.int64) for _ in range(3))
         for name in self.agents:
-            j, space = self._index[name], self.action_spaces[name]
-            try:
-                a = np.asarray(actions[name])
-            except (ValueError, TypeError):  # ragged nested lists
-                a = np.asarray(None)
-            bad = a.shape != (3,) or a.dtype.kind not in "iu" or has_bool(actions[name])  # numpy reads True as 1
-            if bad or not space.contains(a.astype(space.dtype)):
-                raise ValueError(
-                    f"{name}: action {_shown(actions[name])} is outside the action space "
-                    f"MultiDiscrete({space.nvec.tolist()}) ([move, level, track slot] indices)"
-                )
-            moves[j], levels[j], slots[j] = (int(v) for v in a)
+            j = self._index[name]
+            moves[j], levels[j], slots[j] = checked_action(name, actions[name], self.action_spaces[name],
+                                                           self.ACTION_WORDS)
         positions = self.sim.positions
         hovered = np.array([
             not admissible_moves(positions[j], b.displacements[moves[j] : moves[j] + 1], b.low, b.high)[0]
@@ -254,7 +247,7 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         with tempfile.TemporaryDirectory() as tmp:
             png = plot_swarm(res.tables, settings, Path(tmp) / "run.png")
             img = matplotlib.image.imread(png)
-        return np.round(img[..., :3] * 255).astype(np.uint8)
+        return self._frame(np.round(img[..., :3] * 255).astype(np.uint8))
 
     def _acted(self, modes) -> str:
         """Who chose the episode's actions, for the figure's title (the steps' ``mode``)."""
