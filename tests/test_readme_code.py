@@ -36,10 +36,10 @@ def _run(code: str, cwd: Path) -> str:
 
 
 def test_the_readme_has_the_python_blocks_these_tests_run():
-    # seven blocks: the API, step by step, reading a run's files, the environment, the comparison
-    # by seed, the environment on several targets, an experiment of one's own; a new block must
-    # be added to a test below
-    assert len(BLOCKS) == 7
+    # eight blocks: the API, step by step, reading a run's files, the environment, the comparison
+    # by seed, the environment on several targets, its observations scaled with a small frame, an
+    # experiment of one's own; a new block must be added to a test below
+    assert len(BLOCKS) == 8
 
 
 def test_the_block_that_reads_a_runs_files_runs_as_written_and_agrees_with_the_summary(tmp_path):
@@ -78,6 +78,19 @@ def test_the_several_target_environment_block_runs_as_written(tmp_path):
     slots, xi = out.split("]", 1)
     assert slots.startswith("[") and len(slots.split(",")) == 4  # swarm-3's four slots
     assert len(xi.strip().strip("[]").split()) == 3  # one Xi per target
+
+
+def test_the_normalized_environment_block_runs_as_written(tmp_path):
+    import numpy as np
+
+    from trackjam.env import swarm_observation_layout, swarm_state_layout
+
+    out = _run(_block("env = normalized(parallel_env("), tmp_path)
+    frame, obs, state, metres = re.fullmatch(r"(\(.*?\)) (\(.*?\)) (\(.*?\)) \[(.*)\]\n", out, re.S).groups()
+    assert frame == "(240, 320, 3)"
+    assert obs == f"({len(swarm_observation_layout(5, 4))},)" and state == f"({len(swarm_state_layout(5, 3))},)"
+    own = np.array(metres.split(), dtype=float)  # the agent's position, inside the 100 m area
+    assert own.shape == (3,) and np.all((own >= 0) & (own <= 100))
 
 
 def test_the_docs_swarm_3_table_is_what_the_run_prints(tmp_path):

@@ -16,13 +16,15 @@ from trackjam.env.parallel import Planned, TrackjamParallelEnv
 from trackjam.env.policies import random_policy, rollout, solver_policy
 from trackjam.env.swarm import SwarmParallelEnv
 from trackjam.env.swarm_observation import swarm_observation_layout, swarm_state_layout
+from trackjam.env.wrappers import NormalizedObservations, normalized
 from trackjam.simulation.build import is_scenario
 
 if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
     from trackjam.simulation.build import Scenario
 
-__all__ = ["Planned", "SwarmParallelEnv", "TrackjamParallelEnv", "observation_layout", "parallel_env", "random_policy",
-           "rollout", "solver_policy", "state_layout", "swarm_observation_layout", "swarm_state_layout"]
+__all__ = ["NormalizedObservations", "Planned", "SwarmParallelEnv", "TrackjamParallelEnv", "normalized",
+           "observation_layout", "parallel_env", "random_policy", "rollout", "solver_policy", "state_layout",
+           "swarm_observation_layout", "swarm_state_layout"]
 
 
 def parallel_env(scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,

@@ -66,9 +66,11 @@ def random_policy(env: TrackjamParallelEnv, seed: int = 0) -> RandomPolicy:
 
 
 def _check_env(env, who: str) -> None:
-    """``env`` is one of ours (None failed later, at the first step, with an AttributeError)."""
-    if not isinstance(env, TrackjamParallelEnv):
-        raise TypeError(f"{who}: env must be trackjam.env.parallel_env(...)'s environment, got {type(env).__name__}")
+    """``env`` is one of ours, or a wrapper of one such as :func:`trackjam.env.normalized` (None
+    failed later, at the first step, with an AttributeError)."""
+    if not isinstance(getattr(env, "unwrapped", None), TrackjamParallelEnv):
+        raise TypeError(f"{who}: env must be trackjam.env.parallel_env(...)'s environment or a wrapper of it, "
+                        f"got {type(env).__name__}")
 
 
 def rollout(env: TrackjamParallelEnv, policy: Policy, seeds: Iterable[int],
