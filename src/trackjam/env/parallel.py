@@ -372,8 +372,9 @@ class TrackjamParallelEnv(ParallelEnv):
     # -- rendering -------------------------------------------------------------------------
 
     def render(self):
-        """``rgb_array``: the Fig. 3 panels of the episode so far as an (H, W, 3) uint8 array;
-        ``replay``: writes the interactive replay to ``replay_path`` and returns that path."""
+        """``rgb_array``: the Fig. 3 panels of the episode so far as an (H, W, 3) uint8 array
+        (fitted to ``render_size`` when one was given); ``replay``: writes the interactive replay
+        to ``replay_path`` and returns that path."""
         if self.render_mode is None:
             logger.warn("render() without a render_mode: pass render_mode='rgb_array' or 'replay'")
             return None

@@ -227,7 +227,7 @@ class SwarmParallelEnv(TrackjamParallelEnv):
 
     def render(self):
         """``rgb_array``: the run's figure of the episode so far (the several-target run.png) as
-        an (H, W, 3) uint8 array."""
+        an (H, W, 3) uint8 array (fitted to ``render_size`` when one was given)."""
         if self.render_mode is None:
             logger.warn("render() without a render_mode: pass render_mode='rgb_array'")
             return None
