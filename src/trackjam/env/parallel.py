@@ -111,6 +111,31 @@ def _check_replay_path(path) -> None:
         raise ValueError(f"replay_path: {p.absolute().parent} is not an existing folder")
 
 
+def figure_pixels(draw) -> np.ndarray:
+    """The pixels of the figure ``draw(path)`` writes (and returns the path of), as an (H, W, 3)
+    uint8 array; the file is written in a temporary folder and removed."""
+    import tempfile
+    from pathlib import Path
+
+    import matplotlib.image
+
+    with tempfile.TemporaryDirectory() as tmp:
+        img = matplotlib.image.imread(draw(Path(tmp) / "run.png"))
+    return np.round(img[..., :3] * 255).astype(np.uint8)
+
+
+def hover_outside(moves: np.ndarray, positions: np.ndarray, displacements: np.ndarray, low: np.ndarray,
+                  high: np.ndarray) -> np.ndarray:
+    """Which agents' moves would leave the area; those moves are set to 0 (hover) in place: the
+    model document makes a move out of the area inadmissible."""
+    hovered = np.array([
+        not admissible_moves(positions[j], displacements[moves[j] : moves[j] + 1], low, high)[0]
+        for j in range(len(moves))
+    ], dtype=bool)
+    moves[hovered] = 0
+    return hovered
+
+
 @dataclass(frozen=True)
 class Planned:
     """The action of a solver policy: the engine's own planning decides, inside the step, after
@@ -302,24 +327,26 @@ class TrackjamParallelEnv(ParallelEnv):
         for name in self.agents:
             j = self._index[name]
             moves[j], levels[j] = checked_action(name, actions[name], self.action_spaces[name], self.ACTION_WORDS)
-        positions = self.sim.team.positions
-        hovered = np.array([
-            not admissible_moves(positions[j], c.displacements[moves[j] : moves[j] + 1], c.low, c.high)[0]
-            for j in range(len(moves))
-        ])
-        moves[hovered] = 0  # the model document: a move out of the area is not admissible
+        hovered = hover_outside(moves, self.sim.team.positions, c.displacements, c.low, c.high)
         return self.sim.step((moves, levels)), hovered
 
     def _planned_step(self, planned: list[Planned]) -> StepRecord:
+        self._plan_with(self._planned_solver(planned))
+        return self.sim.step()
+
+    def _planned_solver(self, planned: list[Planned]) -> str:
+        """The one solver every agent's ``Planned`` action names, checked for the scenario."""
         solvers = {p.solver for p in planned}
         if len(planned) != len(self.agents) or len(solvers) != 1:
             raise ValueError("a solver plans for the whole team: give every agent the same Planned action")
         solver = solvers.pop()
         self.check_solver(solver)
+        return solver
+
+    def _plan_with(self, solver: str) -> None:
         c = self.sim.c
         if c.plan.solver != solver:  # the engine plans with the settings it was built with
             self.sim.c = replace(c, plan=replace(c.plan, solver=solver))
-        return self.sim.step()
 
     def _outcome(self, record: StepRecord, hovered: np.ndarray):
         sim, c = self.sim, self.sim.c
@@ -375,13 +402,8 @@ class TrackjamParallelEnv(ParallelEnv):
         """``rgb_array``: the Fig. 3 panels of the episode so far as an (H, W, 3) uint8 array
         (fitted to ``render_size`` when one was given); ``replay``: writes the interactive replay
         to ``replay_path`` and returns that path."""
-        if self.render_mode is None:
-            logger.warn("render() without a render_mode: pass render_mode='rgb_array' or 'replay'")
+        if not self._ready_to_render():
             return None
-        if self._ended == CLOSED:
-            raise RuntimeError("render() after close(): call reset() to start a new episode")
-        if self.sim.t == 0:
-            raise RuntimeError("render(): nothing to draw before the first step")
         res = self.sim.result()
         settings = replace(figure_settings(res.scenario), solver=self._acted(res.agents["mode"]))
         if self.render_mode == "replay":
@@ -389,17 +411,22 @@ class TrackjamParallelEnv(ParallelEnv):
             from trackjam.viz.replay import write_replay
 
             return atomic_write(self.replay_path, lambda p: write_replay(res.steps, res.agents, settings, p))
-        import tempfile
-        from pathlib import Path
-
-        import matplotlib.image
-
         from trackjam.viz.figure import plot_run
 
-        with tempfile.TemporaryDirectory() as tmp:
-            png = plot_run(res.steps, res.agents, settings, Path(tmp) / "run.png")
-            img = matplotlib.image.imread(png)
-        return self._frame(np.round(img[..., :3] * 255).astype(np.uint8))
+        return self._frame(figure_pixels(lambda p: plot_run(res.steps, res.agents, settings, p)))
+
+    def _ready_to_render(self) -> bool:
+        """False (with gymnasium's warning) without a render mode; an error after ``close()`` or
+        before the first step; else True."""
+        if self.render_mode is None:
+            modes = " or ".join(f"'{m}'" for m in self.metadata["render_modes"])
+            logger.warn(f"render() without a render_mode: pass render_mode={modes}")
+            return False
+        if self._ended == CLOSED:
+            raise RuntimeError("render() after close(): call reset() to start a new episode")
+        if self.sim.t == 0:
+            raise RuntimeError("render(): nothing to draw before the first step")
+        return True
 
     def _frame(self, img: np.ndarray) -> np.ndarray:
         """The figure's pixels, fitted to ``render_size`` when one was given."""

@@ -20,10 +20,10 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from gymnasium import logger, spaces
+from gymnasium import spaces
 
 from trackjam.control.assignment import ASSIGNMENT_SOLVERS
-from trackjam.env.parallel import CLOSED, Planned, TrackjamParallelEnv, checked_action
+from trackjam.env.parallel import Planned, TrackjamParallelEnv, checked_action, figure_pixels, hover_outside
 from trackjam.env.reward import swarm_reward_terms, team_reward
 from trackjam.env.swarm_observation import (
     checked_slots,
@@ -138,27 +138,20 @@ class SwarmParallelEnv(TrackjamParallelEnv):
             j = self._index[name]
             moves[j], levels[j], slots[j] = checked_action(name, actions[name], self.action_spaces[name],
                                                            self.ACTION_WORDS)
-        positions = self.sim.positions
-        hovered = np.array([
-            not admissible_moves(positions[j], b.displacements[moves[j] : moves[j] + 1], b.low, b.high)[0]
-            for j in range(n)
-        ])
-        moves[hovered] = 0  # the model document: a move out of the area is not admissible
+        hovered = hover_outside(moves, self.sim.positions, b.displacements, b.low, b.high)
         shown = self._slots_shown()
         named = [shown[s - 1] if s else "" for s in slots]
         record = self.sim.step((moves, levels, named))
         self._named = (slots, named)
         return record, hovered
 
-    def _planned_step(self, planned: list[Planned]) -> SwarmRecord:
-        solvers = {p.solver for p in planned}
-        if len(planned) != len(self.agents) or len(solvers) != 1:
-            raise ValueError("a solver plans for the whole team: give every agent the same Planned action")
-        solver = solvers.pop()
-        self.check_solver(solver)
+    def _plan_with(self, solver: str) -> None:
         c = self.sim.c
         if c.base.plan.solver != solver:  # the engine plans with the settings it was built with
             self.sim.c = replace(c, base=replace(c.base, plan=replace(c.base.plan, solver=solver)))
+
+    def _planned_step(self, planned: list[Planned]) -> SwarmRecord:
+        self._plan_with(self._planned_solver(planned))
         shown = self._slots_shown()
         record = self.sim.step()
         served = [str(s) for s in record.agents["serves"]]  # the solver's choice, as an action would name it
@@ -228,26 +221,13 @@ class SwarmParallelEnv(TrackjamParallelEnv):
     def render(self):
         """``rgb_array``: the run's figure of the episode so far (the several-target run.png) as
         an (H, W, 3) uint8 array (fitted to ``render_size`` when one was given)."""
-        if self.render_mode is None:
-            logger.warn("render() without a render_mode: pass render_mode='rgb_array'")
+        if not self._ready_to_render():
             return None
-        if self._ended == CLOSED:
-            raise RuntimeError("render() after close(): call reset() to start a new episode")
-        if self.sim.t == 0:
-            raise RuntimeError("render(): nothing to draw before the first step")
-        import tempfile
-        from pathlib import Path
-
-        import matplotlib.image
-
         from trackjam.viz.swarm import plot_swarm
 
         res = self.sim.result()
         settings = replace(figure_settings(res.scenario), solver=self._acted(res.steps["mode"]))
-        with tempfile.TemporaryDirectory() as tmp:
-            png = plot_swarm(res.tables, settings, Path(tmp) / "run.png")
-            img = matplotlib.image.imread(png)
-        return self._frame(np.round(img[..., :3] * 255).astype(np.uint8))
+        return self._frame(figure_pixels(lambda p: plot_swarm(res.tables, settings, p)))
 
     def _acted(self, modes) -> str:
         """Who chose the episode's actions, for the figure's title (the steps' ``mode``)."""
