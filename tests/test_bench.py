@@ -91,7 +91,7 @@ def test_a_skipped_benchmarks_bracketed_text_is_printed_literally(monkeypatch):
 
     skipped = ('trackjam.env needs the env extra: pip install ".[env]" from the trackjam checkout '
                "(No module named 'pettingzoo')")
-    monkeypatch.setattr(env, "bench_env", lambda episodes: {"name": f"{env.NAME} [x]", "skipped": skipped,
+    monkeypatch.setattr(env, "bench_env", lambda episodes, **_: {"name": f"{env.NAME} [x]", "skipped": skipped,
                                                            "rows": [{"[bold]k": "[v]"}]})
     r = CliRunner().invoke(app, ["bench", "--quick", "--only", "env"])
     assert r.exit_code == 0, r.output

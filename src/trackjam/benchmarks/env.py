@@ -1,5 +1,6 @@
 """Benchmark of the learning environment: env steps per second with uniform random actions on
-the paper's Fig. 3 scenario (`paper-fig3`: N = 3, 79 controls, 10,000 + 2,000 particles)."""
+the paper's Fig. 3 scenario (`paper-fig3`: N = 3, 79 controls, 10,000 + 2,000 particles) and on
+`swarm-3` (several targets: N = 5, K = 3, the swarm engine's LMB filters)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,14 @@ import time
 
 import numpy as np
 
-NAME = "env steps, random actions, paper-fig3"
+
+
+def name(preset: str) -> str:
+    """The benchmark's title for ``preset``."""
+    return f"env steps, random actions, {preset}"
+
+
+NAME = name("paper-fig3")
 
 
 def bench_env(episodes: int = 3, preset: str = "paper-fig3", overrides: tuple[str, ...] = ()) -> dict:
@@ -17,7 +25,7 @@ def bench_env(episodes: int = 3, preset: str = "paper-fig3", overrides: tuple[st
     try:
         from trackjam.env import parallel_env, random_policy
     except ImportError as err:
-        return {"name": NAME, "skipped": str(err)}
+        return {"name": name(preset), "skipped": str(err)}
     from trackjam.simulation.build import load_scenario
 
     env = parallel_env(load_scenario(preset, list(overrides)))
@@ -43,7 +51,7 @@ def bench_env(episodes: int = 3, preset: str = "paper-fig3", overrides: tuple[st
         cpu += c
     walls = np.array(walls)
     return {
-        "name": NAME,
+        "name": name(preset),
         "episodes": episodes,
         "steps": int(walls.size),
         "steps_per_s": float(walls.size / walls.sum()),

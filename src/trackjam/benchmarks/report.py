@@ -61,7 +61,8 @@ def _groups(quick: bool) -> dict:
         "control": lambda: [{"name": k, **v} for k, v in control.run(quick=quick).items()],
         "run": lambda: [*(run.bench_run(solver, repeats=1 if quick else 3) for solver in ("exact", "grasp")),
                         run.bench_run("exact", repeats=1, steps=5 if quick else None, preset="swarm-3")],
-        "env": lambda: [env.bench_env(episodes=1 if quick else 5)],
+        "env": lambda: [env.bench_env(episodes=1 if quick else 5),
+                        env.bench_env(episodes=1 if quick else 3, preset="swarm-3")],
     }
 
 
