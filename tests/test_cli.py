@@ -321,15 +321,15 @@ def test_an_experiments_bad_set_is_named_as_run_names_it(name, tmp_path):
 
 
 def test_an_option_the_swarm_engine_does_not_simulate_is_blamed_on_its_set(tmp_path):
-    problem = "comms.loss: 0.1 is not simulated with several targets yet; the swarm engine runs with 0.0"
+    problem = "control.plan_over: 'belief' is not simulated with several targets yet; the swarm engine runs with 'point'"
     for command in ("validate", "run"):
-        r = runner.invoke(app, [command, "swarm-3", "--set", "comms.loss=0.1", "--set", "steps=2"])
-        assert r.exit_code == 2 and r.output == f"trackjam: error: --set comms.loss=0.1: {problem}\n"
+        r = runner.invoke(app, [command, "swarm-3", "--set", "control.plan_over=belief", "--set", "steps=2"])
+        assert r.exit_code == 2 and r.output == f"trackjam: error: --set control.plan_over=belief: {problem}\n"
     # set by a file, it is the file's (the message names its key, as before)
     from trackjam.config import load_scenario, scenario_to_yaml
 
-    f = tmp_path / "lossy.yaml"
-    f.write_text(scenario_to_yaml(load_scenario("swarm-3", ["comms.loss=0.1"])))
+    f = tmp_path / "belief.yaml"
+    f.write_text(scenario_to_yaml(load_scenario("swarm-3", ["control.plan_over=belief"])))
     r = runner.invoke(app, ["validate", str(f), "--set", "steps=2"])
     assert r.exit_code == 2 and r.output == f"trackjam: error: {problem}\n"
 

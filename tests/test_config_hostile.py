@@ -679,13 +679,16 @@ def test_a_link_that_leads_nowhere_is_said_so(tmp_path):
         load_scenario(str(tmp_path / "a.yaml"))
 
 
-def test_a_list_option_the_swarm_engine_does_not_simulate_is_shown_as_the_file_says_it():
+def test_a_section_the_swarm_engine_does_not_simulate_is_shown_as_the_file_says_it():
     from trackjam.simulation.build import check_swarm_options
 
-    s = load_scenario("swarm-3", ["comms.failures=[{agent: 0, step: 1, mode: breakdown}]"])
+    s = load_scenario("swarm-3", ["oracle={truth_after_hiding: 2}"])
     with pytest.raises(ConfigError) as err:
         check_swarm_options(s)
-    assert str(err.value).startswith("comms.failures: [{'agent': 0, 'step': 1, 'mode': 'breakdown'}] is not simulated")
+    assert str(err.value).startswith("oracle: {'state_before_hiding': False, 'mean_before_hiding': False, "
+                                     "'truth_after_hiding': 2,")
+    assert str(err.value).endswith("is not simulated with several targets yet; the swarm engine runs with null")
+    check_swarm_options(load_scenario("swarm-3", ["comms.failures=[{agent: 0, step: 1, mode: breakdown}]"]))
 
 
 @pytest.mark.parametrize("fields, words", [

@@ -391,11 +391,19 @@ def test_bad_parameters_are_refused():
         params(birth_existence_max=1.0)
 
 
-def test_a_late_scan_is_refused():
-    """Late scans (comms faults) are one-target only: the LMB update refuses them."""
-    track = Track((1, 0), 0.5, X_HAND, np.log(W_HAND))
-    with pytest.raises(ValueError, match="late scan"):
-        lmb_update([track], scan(np.zeros((0, 3))).late(1), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0))
+def test_a_late_scan_is_weighed_at_the_particles_moved_back_by_their_velocity():
+    """A teammate's scan that arrived two steps late (comms.stale: coast) weighs each particle
+    where Eq. (1) without its noise put it then, x - 2 v; an empty scan gives r q / (1 - r + r q),
+    q = sum_i w_i (1 - p_D(x_i - 2 v_i)), and the particles stay where they are."""
+    X = X_HAND.copy()
+    X[:, 3:6] = [[1.0, 0.5, 0.0], [0.0, 0.0, 0.0], [-0.5, 0.0, 0.5], [0.0, 2.0, 0.0]]
+    track = Track((1, 0), 0.5, X, np.log(W_HAND))
+    late, _, _ = lmb_update([track], scan(np.zeros((0, 3))).late(2), ANT, SIGMA, LOG_KAPPA, np.random.default_rng(0))
+    q = W_HAND @ (1 - detection_probability(X[:, :3] - 2 * X[:, 3:6], U, AIM, ANT.l_max, ANT))
+    now = W_HAND @ (1 - detection_probability(X[:, :3], U, AIM, ANT.l_max, ANT))
+    assert late[0].r == pytest.approx(0.5 * q / (0.5 + 0.5 * q), rel=1e-12)
+    assert abs(q - now) > 1e-3  # the step back matters here
+    assert np.array_equal(late[0].X, X)
 
 
 def test_with_association_misses_teammates_misses_lower_a_confident_tracks_existence():

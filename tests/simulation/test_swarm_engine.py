@@ -162,7 +162,7 @@ def test_a_one_target_component_is_refused_for_several_targets_and_unsimulated_o
 
     with pytest.raises(ConfigError, match="^targets: 2 targets given"):
         Simulation(two())
-    for key, value in (("comms.loss", "0.1"), ("fusion.existence", "evidence"), ("control.plan_over", "belief"),
+    for key, value in (("fusion.existence", "evidence"), ("control.plan_over", "belief"),
                        ("fusion.search_reseed", "evidence"), ("filter.reserve_memory", "1"), ("control.belief_at_least", "1"),
                        ("filter.velocity_jitter", "0.5"), ("filter.birth", "mixed"), ("filter.birth_prob", "0.5"),
                        ("filter.birth_mix", "0.3")):

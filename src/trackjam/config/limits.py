@@ -188,13 +188,15 @@ def estimate(s: Any) -> dict[str, tuple[float, tuple[str, ...]]]:
         # each agent, give every agent an inbox of its own
         own = s.comms.loss > 0 or (s.comms.delay_steps > 0 and s.comms.stale == "coast")
         out["work_fusion"] = ((N if own else 1) * fusion_ops(N), ("agents.initial",))
-    if s.comms.delay_steps and not several:
+    if s.comms.delay_steps:
         # messages in flight: each step every agent sends its prediction, plan and posterior (or
         # scan) to the N - 1 others, held for delay_steps steps; an entry per recipient (about
         # 128 bytes) and the message itself (its estimate or scan, about 2.5 kB + 24 per
-        # measurement); measured 3.5 kB per message and sender at N = 16, 4.7 kB here
+        # measurement); measured 3.5 kB per message and sender at N = 16, 4.7 kB here. With
+        # several targets a message holds the sender's tracks (about 0.5 kB each, up to MAX_TRACKS)
+        body = 2500.0 + 24.0 * m + (512.0 * MAX_TRACKS if several else 0.0)
         out["memory_messages"] = (
-            min(s.comms.delay_steps, s.steps) * N * 3.0 * ((N - 1) * 128.0 + 2500.0 + 24.0 * m),
+            min(s.comms.delay_steps, s.steps) * N * 3.0 * ((N - 1) * 128.0 + body),
             ("comms.delay_steps", "agents.initial"),
         )
     # planning over the belief (one target; the swarm engine refuses it): S points, each agent's
@@ -245,9 +247,10 @@ def _swarm_estimate(s: Any, N: int, C: int, L: int, m: float) -> dict[str, tuple
         # the planner holds about three copies of its tables at once (measured: 7.6 GB at 64
         # agents against 2.5 GB counted once, 1.95 GB at 40 against 0.96)
         "memory_tables": (3 * 8.0 * (N * N * (aims * C) ** 2 + aims * (N * N * C * C + 2 * N * C * L + N)), moves),
-        "work_tables": (float(N * N * (aims * C) ** 2), moves),
+        # under the comms faults each agent can hold a view of its own: a table and two fusions each
+        "work_tables": (float(N * N * (aims * C) ** 2) * (N if _split(s) else 1), moves),
         # the predicted and the posterior tracks fused a step, a cluster of up to N per track
-        "work_fusion": (2.0 * held * fusion_ops(N), ("agents.initial", "targets")),
+        "work_fusion": (2.0 * held * fusion_ops(N) * (N if _split(s) else 1), ("agents.initial", "targets")),
     }
 
 

@@ -47,7 +47,7 @@ from typing import Sequence
 import numpy as np
 
 from trackjam.arguments import corners, numeric, real, vector, whole
-from trackjam.estimation.bernoulli import Scan, weighted_moments
+from trackjam.estimation.bernoulli import DT, Scan, weighted_moments
 from trackjam.estimation.birth import Gaussians, UniformBirth
 from trackjam.estimation.failsafe import FailSafe, JamWatch, move_downed, watched
 from trackjam.estimation.kernels import (
@@ -259,6 +259,16 @@ def posterior_visible(nu: float, log_coef: np.ndarray, log_miss_mean: float) -> 
     return float(min((detected + missed * nu_missed) / total, 1.0)) if total > 0.0 else nu
 
 
+def retrodicted(track: Track, lag: int) -> Track:
+    """The track with each particle moved back ``lag`` steps by Eq. (1) without its noise, x -
+    lag dT v (ours, as :meth:`Scan.log_factors` for the Bernoulli filter; walls are ignored): a
+    teammate's scan that arrived ``lag`` steps late is weighed there. The particles' indices,
+    and so the weights the update gives them, are the track's own."""
+    X = np.array(track.X, dtype=float)
+    X[:, :3] -= lag * DT * X[:, 3:6]
+    return replace(track, X=X)
+
+
 def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, log_kappa: float,
                rng: np.random.Generator, method: str = "gibbs", samples: int = 1000, k: int = 200,
                balls: Sequence[tuple[np.ndarray, float]] | None = None, misses: bool = False):
@@ -267,11 +277,12 @@ def lmb_update(tracks: list[Track], scan: Scan, ant: AntennaModel, noise_std, lo
     probability that each measurement was some track's. ``balls[i]`` holds track i's particles
     (:func:`track_factors`; the particles do not move within an update, so one ball serves every
     scan of it)."""
-    if scan.lag:
-        raise ValueError("the LMB filter takes no late scan (comms faults are one-target only)")
     m = len(scan.Z)
-    factors = [track_factors(t, scan, ant, noise_std, log_kappa, None if balls is None else balls[i])
-               for i, t in enumerate(tracks)]
+    if scan.lag:  # a teammate's late scan (comms.stale: coast) is weighed where each particle was then
+        factors = [track_factors(retrodicted(t, scan.lag), scan, ant, noise_std, log_kappa) for t in tracks]
+    else:
+        factors = [track_factors(t, scan, ant, noise_std, log_kappa, None if balls is None else balls[i])
+                   for i, t in enumerate(tracks)]
     log_eta = np.array([f.log_eta for f in factors]).reshape(len(tracks), m + 1)
     beta = association_marginals(log_eta, method, rng, samples, k, misses)
     posterior = [posterior_track(t, f, b) for t, f, b in zip(tracks, factors, beta)]
@@ -397,7 +408,9 @@ class LMBFilter:
         (the iterated corrector: the scans are independent given the targets, and with one track
         this is the Bernoulli update by the product of their factors, up to rounding: r is a
         probability, so odds beyond 1e16 after one scan round it to 1, which no later scan
-        lowers); then the births of the own scan, pruning, the cap and resampling. Runs
+        lowers); a teammate's late scan (``Scan.late``, ``comms.stale: coast``) is weighed at
+        the particles retrodicted to its step (:func:`retrodicted`); then the births of the own
+        scan, pruning, the cap and resampling. Runs
         ``predict()`` first if it was not called since the last update.
 
         Checked first (about 7 us): ``Z`` finite (m, 3) rows (an empty list: no

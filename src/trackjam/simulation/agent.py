@@ -26,7 +26,7 @@ class Message:
     updated estimate with the predicted existence it started from (for evidence fusion)."""
 
     sender: int
-    kind: str  # "prediction" | "plan" | "posterior"
+    kind: str  # "prediction" | "plan" | "posterior" | "scan"
     stamp: int
     position: np.ndarray | None = None
     estimate: Estimate | None = None
@@ -38,6 +38,8 @@ class Message:
     log_evidence: float | None = None  # posterior: log sum_i w_i L_i, its scan's evidence were the target visible
     visibility: float | None = None  # posterior: the predicted P(visible) it started from (hidden-target mode)
     scan: object | None = None  # scan: a trackjam.estimation.bernoulli.Scan (fusion.share: scans)
+    tracks: list | None = None  # several targets: its predicted or updated tracks (TrackEstimate)
+    informed: np.ndarray | None = None  # several targets, posterior: its cone reached each track this step
 
 
 @dataclass

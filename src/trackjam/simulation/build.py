@@ -299,9 +299,6 @@ def _swarm_unsupported(s: Scenario) -> list[tuple[str, object, object]]:
         ("control.close_in", s.control.close_in, None),
         ("control.greedy_aim", s.control.greedy_aim, "team"),
         ("fusion.search_reseed", s.fusion.search_reseed, "always"),
-        ("comms.loss", s.comms.loss, 0.0),
-        ("comms.delay_steps", s.comms.delay_steps, 0),
-        ("comms.failures", s.comms.failures, []),
         ("oracle", s.oracle, None),
     ]
 

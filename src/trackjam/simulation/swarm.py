@@ -31,18 +31,38 @@ Simulation`, a thin loop over the several-target blocks. One step:
    most that; with ``filter.visibility``, those with existence x P(visible) > 0.5) are reported
    and judged against the detectable targets (:mod:`trackjam.metrics.multi`); with ``control.fallback: search`` the team remembers the confirmed ones' states.
 
-Every message arrives (the ``comms`` faults are one-target only so far) and the team acts as one.
+With every message delivered, every agent holds the same tracks and the team acts as one: one
+fusion and one solve a step serve every agent (:meth:`SwarmSimulation._step`).
+
+Faults (``comms``, ours, as the one-target team's in :mod:`trackjam.simulation.team`;
+:meth:`SwarmSimulation._step_team`): the predicted tracks, the scans (``fusion.share: scans``)
+and the updated tracks pass through the team's :class:`~trackjam.simulation.team.Exchange` (a
+message to another agent is lost with probability ``loss``, drawn from the run's comms stream,
+and arrives ``delay_steps`` late; ``failures`` stop an agent's publisher, its channel, or the
+agent). Each working agent fuses its own predicted tracks with those of this step that reached
+it (a late prediction only tells where its sender was), takes its aims from that view and its
+own memory of the lost tracks, and plans with the solver over the agents it heard from, every
+other teammate guarded at its last known position (a receiver of Eq. (13) that adds to no
+Xi_k); it applies its own move, level and served aim. Agents holding the same problem solve it
+once. Each working agent updates on its scan (and the teammates' of this step that reached it;
+under ``comms.stale: coast`` also the late ones, weighed at the particles retrodicted to their
+step), then fuses its updated tracks with the teammates' that reached it, the late ones
+predicted by Eq. (1) to now under ``coast`` and ignored under ``drop``; the feedback resets its
+own filter's tracks only. The team's report, metrics and step row are the lowest-index working
+agent's, as the one-target engine's (no track once every agent is down). A broken agent
+(``breakdown``) hovers with its antenna off, senses, sends and hears nothing; its mode is
+``down``.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from trackjam.control.assignment import SolverOptions, build_assignment, solve_assignment
+from trackjam.control.assignment import AssignmentProblem, SolverOptions, build_assignment, solve_assignment
 from trackjam.control.fallback import fallback_levels
 from trackjam.errors import bounded_repr
 from trackjam.estimation.bernoulli import Estimate, Scan
@@ -53,10 +73,13 @@ from trackjam.metrics.multi import gated_assignment, ospa_parts
 from trackjam.radio.antenna import detection_probability, interference_matrix
 from trackjam.radio.measurement import sample_scan_multi, target_exposure_unchecked
 from trackjam.simulation.actions import checked_actions
+from trackjam.simulation.agent import Message
 from trackjam.simulation.build import SwarmComponents, build_swarm
 from trackjam.simulation.engine import Stepping, located
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
 from trackjam.simulation.swarm_search import Aim, SearchMemory, plan_point
+from trackjam.simulation.team import Exchange
+from trackjam.world.motion import cv_coast
 from trackjam.world.swarm import TruthSwarm
 
 if TYPE_CHECKING:  # the scenario is read in one place, simulation/build.py
@@ -156,6 +179,33 @@ def informed_fusion(team: list[FusedTrack], own: list[list[TrackEstimate]],
     return out
 
 
+def coasted_tracks(late: list[Message], t: int, accel_var: float) -> list[Message]:
+    """``comms.stale: coast`` with several targets (ours, as
+    :func:`~trackjam.simulation.team.coasted_posteriors`): of the late posteriors that arrived,
+    each sender's latest only, every track's mean and covariance predicted by Eq. (1) from its
+    step to ``t`` (existence, visibility and label as sent)."""
+    latest: dict[int, Message] = {}
+    for m in late:
+        if m.sender not in latest or latest[m.sender].stamp < m.stamp:
+            latest[m.sender] = m
+    out = []
+    for sender in sorted(latest):
+        m = latest[sender]
+        tracks = [replace(e, mean=mean, cov=cov) for e in m.tracks
+                  for mean, cov in [cv_coast(e.mean, e.cov, accel_var, t - m.stamp)]]
+        out.append(replace(m, tracks=tracks))
+    return out
+
+
+def guarded_assignment(problem: AssignmentProblem, n_planned: int) -> AssignmentProblem:
+    """The problem with its agents from ``n_planned`` on held at hover and adding nothing to any
+    target's Xi_k (p_D = 0), still receivers of Eq. (13): teammates an agent did not hear from
+    this step (:meth:`trackjam.control.problem.Problem.guarded` per aim)."""
+    pz = problem.pz.copy()
+    pz[:, n_planned:, :] = 0.0
+    return replace(problem, targets=tuple(P.guarded(n_planned) for P in problem.targets), pz=pz)
+
+
 def track_label(track: FusedTrack) -> str:
     """The team's label of a fused track: its oldest member's, ``aA:B.I`` (agent A's track born
     at step B as birth I), so the label stays while that track lives whoever else joins."""
@@ -205,12 +255,15 @@ class SwarmSimulation(Stepping):
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
         self.c: SwarmComponents = build_swarm(scenario)
+        team = self.c.base.team
+        # each agent on its own view (the comms faults); False: the team acts as one, one solve a step
+        self.distributed = team.loss > 0 or team.delay_steps > 0 or bool(team.failures)
         self.reset()
 
     def reset(self) -> None:
         """Back to t = 0 with fresh random streams from the scenario's seed."""
         c, b = self.c, self.c.base
-        truth_seed, agent_seeds, _ = b.seed_tree()
+        truth_seed, agent_seeds, comms_seed = b.seed_tree()
         self.truth = TruthSwarm.from_seed(c.targets, c.ids, truth_seed)
         first = self.truth.first_positions
         velocities = self.truth.first_velocities if b.cue_velocity else None
@@ -227,6 +280,16 @@ class SwarmSimulation(Stepping):
             self.agents.append(SwarmAgent(j, np.array(u, dtype=float), np.array(aim, dtype=float), lmb,
                                           np.random.default_rng(sensor_seed), np.random.default_rng(plan_seed)))
         self.memory = SearchMemory(b.team.accel_var) if b.team.searching else None
+        n = len(self.agents)
+        # the comms faults: every agent fuses, remembers and plans from what reached it
+        # (:meth:`_step_team`); without them every agent's view is the team's and one solve serves all
+        self.exchange = Exchange(n, b.team, np.random.default_rng(comms_seed))
+        briefing = {a.index: (0, a.position.copy()) for a in self.agents}  # where the team starts
+        self.known = [dict(briefing) for _ in range(n)]  # teammate -> (stamp, position) last heard
+        self.memories = [SearchMemory(b.team.accel_var) for _ in range(n)] if b.team.searching else None
+        # each agent's fused view of the last step: its predicted tracks and its updated ones
+        self.predicted_views: list[list[FusedTrack]] = [[] for _ in range(n)]
+        self.views: list[list[FusedTrack]] = [[] for _ in range(n)]
         self.log = SwarmLog([str(i) for i in c.ids])
         self.t = 0
         self.broken = None
@@ -253,7 +316,7 @@ class SwarmSimulation(Stepping):
         if actions is not None:  # refused before the step changes anything
             actions = checked_swarm_actions(actions, self.positions, b.displacements, len(b.antenna.levels_w),
                                             b.low, b.high)
-        return self._guarded(self._step, actions)
+        return self._guarded(self._step_team if self.distributed else self._step, actions)
 
     def _step(self, actions: tuple | None = None) -> SwarmRecord:
         b = self.c.base
@@ -284,7 +347,6 @@ class SwarmSimulation(Stepping):
                                                    positions, points, level_w, b.antenna)
         received = to_target.sum(axis=0)
         truth.apply_jamming(t, received)
-        interference = interference_matrix(positions, points, level_w, b.antenna).sum(axis=1)
         X = truth.detectable_positions
         scans = [sample_scan_multi(a.sensor_rng, X, a.position, p_d[j], b.noise_std, b.clutter_rate,
                                    b.antenna.max_range) for j, a in enumerate(self.agents)]
@@ -301,9 +363,215 @@ class SwarmSimulation(Stepping):
             self._feed_back(team)
         for a in self.agents:  # filter.response: each filter knows the team's transmissions of the step
             a.filter.note_jamming(positions, points, level_w)
+        self.predicted_views, self.views = [predicted] * len(self.agents), [team] * len(self.agents)
         sure = self.sure = confirmed(team)
         if self.memory is not None:
             self.memory.remember(t, [(track_label(f), f.estimate.mean, f.estimate.cov) for f in sure])
+        n = len(self.agents)
+        return self._record(t, t0, solve_s, prev, len(aims), plan, points, level_w, to_target, received, p_d, scans,
+                            own, sure, plan["mode"], [a.mode for a in self.agents], np.full(n, n, dtype=np.int64))
+
+    def _step_team(self, actions: tuple | None = None) -> SwarmRecord:
+        """One step under the ``comms`` faults (the module docstring, "Faults"): predictions,
+        scans (``fusion.share: scans``) and posteriors pass through the team's exchange, and
+        every working agent fuses, remembers and plans from what reached it."""
+        b, c = self.c.base, self.c
+        t0 = time.perf_counter()
+        self.t = t = self.t + 1
+        truth, ex, n = self.truth, self.exchange, len(self.agents)
+        truth.step(t)
+        working = [j for j in range(n) if not ex.down(j, t)]
+        # round 1: each working agent predicts and announces its position, aim and predicted tracks
+        sent = [Message(j, "prediction", t, position=self.agents[j].position.copy(), aim=self.agents[j].aim.copy(),
+                        tracks=self.agents[j].filter.predict()) for j in working]
+        inboxes = ex.send(t, "prediction", sent)
+        fresh: list[list[Message]] = [[] for _ in range(n)]
+        for j in working:
+            for m in inboxes[j]:  # a late prediction tells where the teammate was, nothing more
+                if self.known[j][m.sender][0] <= m.stamp:
+                    self.known[j][m.sender] = (m.stamp, m.position)
+            fresh[j] = [m for m in inboxes[j] if m.stamp == t]
+        predicted: list[list[FusedTrack]] = [[] for _ in range(n)]
+        views: dict[tuple[int, ...], list[FusedTrack]] = {}  # agents that heard the same agents fuse alike
+        for j in working:
+            key = tuple(m.sender for m in fresh[j])
+            if key not in views:
+                views[key] = fuse_tracks_unchecked(self._by_agent(fresh[j], n))
+            predicted[j] = views[key]
+        t_plan = time.perf_counter()
+        if actions is None:
+            aims = {j: self._aims(t, predicted[j], np.array([m.position for m in fresh[j]]),
+                                  None if self.memories is None else self.memories[j]) for j in working}
+            plans = self._plans(working, fresh, aims)
+        else:
+            aims, plans = {}, {}
+            for j in working:
+                aims[j], plan = self._given(predicted[j], *actions, positions=np.array([m.position for m in fresh[j]]))
+                plans[j] = dict(plan, row=j)
+        solve_s = time.perf_counter() - t_plan
+        prev = self.positions
+        serve = np.full(n, -1)
+        moves, levels = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)  # a broken agent hovers, off
+        for j in working:
+            plan, i = plans[j], plans[j]["row"]
+            moves[j], levels[j], serve[j] = plan["move"][i], plan["level"][i], plan["serve"][i]
+        for j, a in enumerate(self.agents):
+            a.position = a.position + b.displacements[moves[j]]
+            k = serve[j]
+            if k >= 0:
+                aim = aims[j][k]
+                a.aim, a.serves, a.mode = aim.point.copy(), aim.label, "search" if aim.search else "track"
+            else:
+                a.serves, a.mode = "", "hover" if j in working else "down"
+        positions = self.positions
+        points = self._points_each(aims, serve)
+        level_w = b.antenna.levels_w[levels]
+        to_target, p_d = target_exposure_unchecked(np.nan_to_num(truth.positions), truth.exists, truth.detectable,
+                                                   positions, points, level_w, b.antenna)
+        received = to_target.sum(axis=0)
+        truth.apply_jamming(t, received)
+        X = truth.detectable_positions
+        nothing = (np.zeros((0, 3)), np.zeros(0, dtype=np.int64))  # a broken agent senses nothing
+        scans = [sample_scan_multi(a.sensor_rng, X, a.position, p_d[j], b.noise_std, b.clutter_rate,
+                                   b.antenna.max_range) if j in working else nothing
+                 for j, a in enumerate(self.agents)]
+        shared = b.team.share == "scans"
+        others: dict[int, list[Scan]] = {j: [] for j in working}
+        if shared:  # each agent's scan to the others, under the faults; a late one weighs under coast
+            boxes = ex.send(t, "scan", [Message(j, "scan", t, scan=Scan.of(scans[j][0], self.agents[j].position,
+                                                                             points[j], float(level_w[j]), b.antenna))
+                                        for j in working])
+            coast = b.team.stale == "coast"
+            others = {j: [m.scan if m.stamp == t else m.scan.late(t - m.stamp) for m in boxes[j]
+                          if m.sender != j and (m.stamp == t or coast)] for j in working}
+        own: list[list[TrackEstimate]] = [[] for _ in range(n)]
+        for j in working:
+            a = self.agents[j]
+            own[j] = a.filter.update(scans[j][0], a.position, points[j], float(level_w[j]), others[j])
+        informed = [np.ones(len(m), dtype=bool) for m in own] if shared else self._informed(own, points, level_w)
+        # round 3: each working agent announces its tracks and fuses the ones that reached it
+        boxes = ex.send(t, "posterior", [Message(j, "posterior", t, position=self.agents[j].position.copy(),
+                                                 tracks=own[j], informed=informed[j]) for j in working])
+        team: list[list[FusedTrack]] = [[] for _ in range(n)]
+        held: list[list[list[TrackEstimate]]] = [[[] for _ in range(n)] for _ in range(n)]
+        fused: dict[tuple[int, ...], tuple] = {}
+        for j in working:
+            box = [m for m in boxes[j] if m.stamp == t]
+            if b.team.stale == "coast":
+                box = coasted_tracks([m for m in boxes[j] if m.stamp < t], t, c.lmb.accel_var) + box
+            key = tuple(id(m) for m in box)
+            if key not in fused:
+                tracks, flags = self._by_agent(box, n), [np.zeros(0, dtype=bool) for _ in range(n)]
+                for m in box:
+                    flags[m.sender] = m.informed
+                fused[key] = (informed_fusion(fuse_tracks_unchecked(tracks), tracks, flags), tracks)
+            team[j], held[j] = fused[key]
+        if b.team.feedback and not shared:
+            for j in working:
+                self._feed_back(team[j], only=j)
+        for j in working:  # filter.response: each filter knows the team's transmissions of the step
+            self.agents[j].filter.note_jamming(positions, points, level_w)
+        self.predicted_views, self.views = predicted, team
+        sure_of = {j: confirmed(team[j]) for j in working}
+        if self.memories is not None:
+            for j in working:
+                self.memories[j].remember(t, [(track_label(f), f.estimate.mean, f.estimate.cov) for f in sure_of[j]])
+        # the team's report: the lowest-index working agent's view, as the one-target team's
+        r = working[0] if working else None
+        sure = self.sure = [] if r is None else sure_of[r]
+        plan = plans[r] if r is not None else dict(mode="down", objective=np.nan, optimal=False, gap=np.nan)
+        heard = np.array([len(fresh[j]) for j in range(n)], dtype=np.int64)
+        return self._record(t, t0, solve_s, prev, 0 if r is None else len(aims[r]), dict(plan, level=levels), points,
+                            level_w, to_target, received, p_d, scans, [] if r is None else held[r], sure,
+                            plan["mode"], [a.mode for a in self.agents], heard, own)
+
+    @staticmethod
+    def _by_agent(messages: list[Message], n: int) -> list[list[TrackEstimate]]:
+        """The tracks of ``messages`` at their senders' indices (none for an agent not heard):
+        the fused tracks' members keep the agents' own indices."""
+        tracks: list[list[TrackEstimate]] = [[] for _ in range(n)]
+        for m in messages:
+            tracks[m.sender] = m.tracks
+        return tracks
+
+    def _plans(self, working: list[int], fresh: list[list[Message]], aims: dict[int, list[Aim]]) -> dict[int, dict]:
+        """Each working agent's plan from its view: the solver over the agents it heard from this
+        step (its rows; ``row`` is its own), every other teammate guarded at its last known
+        position (a receiver of Eq. (13) that adds nothing to the objective, as the one-target
+        team's). Agents holding the same problem solve it once (with none of the faults, every
+        agent: the team's one solve); under ``grasp``, a row that is not one of them searches
+        with a stream spawned from the first one's."""
+        b, p = self.c.base, self.c.base.plan
+        groups: dict[tuple, list[int]] = {}
+        for j in working:
+            rows = tuple(m.sender for m in fresh[j])
+            guards = tuple(sorted(k for k in self.known[j] if k not in rows))
+            key = (rows, guards, tuple(m.position.tobytes() for m in fresh[j]),
+                   tuple(self.known[j][k][1].tobytes() for k in guards),
+                   tuple((a.label, a.point.tobytes(), a.search) for a in aims[j]),
+                   () if aims[j] else tuple(m.aim.tobytes() for m in fresh[j]))
+            groups.setdefault(key, []).append(j)
+        out = {}
+        for (rows, guards, *_), members in groups.items():
+            j0 = members[0]
+            heard = fresh[j0]
+            positions = np.array([m.position for m in heard] + [self.known[j0][k][1] for k in guards])
+            if not aims[j0]:
+                levels = fallback_levels(positions[:len(rows)], np.array([m.aim for m in heard]), b.antenna,
+                                         p.constraints)
+                plan = dict(mode="hover", move=np.zeros(len(rows), dtype=np.int64),
+                            level=np.asarray(levels, dtype=np.int64), serve=np.full(len(rows), -1),
+                            objective=np.nan, optimal=False, gap=np.nan)
+            else:
+                x_bar = np.array([a.point for a in aims[j0]])
+                problem = build_assignment(positions, x_bar, b.displacements, b.antenna, b.low, b.high,
+                                           min(p.at_least, len(rows)), p.constraints, self.c.team_objective)
+                if guards:
+                    problem = guarded_assignment(problem, len(rows))
+                spare = self.agents[j0].plan_rng
+                rngs = [self.agents[k].plan_rng if k in members else
+                        (spare.spawn(1)[0] if p.solver == "grasp" else spare) for k in rows + guards]
+                options = SolverOptions(samples=p.samples, iterations=p.iterations, neighbours=p.neighbours,
+                                        threads=p.threads, time_limit_s=p.time_limit_s, node_limit=p.node_limit)
+                sol = solve_assignment(problem, p.solver, rngs, options)
+                plan = dict(mode="search" if all(a.search for a in aims[j0]) else "track",
+                            move=np.asarray(sol.move, dtype=np.int64), level=np.asarray(sol.level, dtype=np.int64),
+                            serve=np.asarray(sol.target, dtype=np.int64), objective=float(sol.objective),
+                            optimal=bool(sol.optimal), gap=float(sol.gap))
+            for j in members:
+                out[j] = dict(plan, row=rows.index(j))
+        return out
+
+    def _points_each(self, aims: dict[int, list[Aim]], serve: np.ndarray) -> np.ndarray:
+        """:meth:`_points` with each agent's own aims: under ``pointing: truth`` an agent points
+        at the true position of the target matched to the aim it serves in its own view."""
+        b = self.c.base
+        points = np.array([a.aim for a in self.agents])
+        if b.pointing != "truth":
+            return points
+        truth = self.truth.positions
+        for j, mine in aims.items():
+            if serve[j] < 0 or not mine:
+                continue
+            aim_of = gated_assignment(truth, np.array([a.mean[:3] for a in mine]), b.gate)
+            for k, a in enumerate(aim_of):
+                if a >= 0 and a == serve[j]:
+                    points[j] = truth[k]
+        return points
+
+    def _record(self, t: int, t0: float, solve_s: float, prev: np.ndarray, n_aims: int, plan: dict,
+                points: np.ndarray, level_w: np.ndarray, to_target: np.ndarray, received: np.ndarray,
+                p_d: np.ndarray, scans: list, own: list[list[TrackEstimate]], sure: list[FusedTrack], mode: str,
+                modes: list[str], heard: np.ndarray, mine: list[list[TrackEstimate]] | None = None) -> SwarmRecord:
+        """The step's report (the confirmed tracks ``sure`` of the team's fused view, their
+        members' tracks in ``own``), its metrics and its log rows; ``mine``: each agent's own
+        updated tracks (``own`` when None)."""
+        mine = own if mine is None else mine
+        b = self.c.base
+        truth = self.truth
+        positions = self.positions
+        interference = interference_matrix(positions, points, level_w, b.antenna).sum(axis=1)
+        X = truth.detectable_positions
         report = [f for f in sure if located(f.estimate.cov, b.report_spread)
                   and f.estimate.existence * visible(f, own) > CONFIRM]
         labels = [track_label(f) for f in report]
@@ -317,8 +585,8 @@ class SwarmSimulation(Stepping):
         record = SwarmRecord(
             t=t,
             step=dict(t=t, targets_present=int(truth.exists.sum()), targets_detectable=int(truth.detectable.sum()),
-                      tracks=len(report), aims=len(aims), ospa=ospa, ospa_loc=loc, ospa_card=card,
-                      mode=plan["mode"], objective=plan["objective"], optimal=plan["optimal"], gap=plan["gap"],
+                      tracks=len(report), aims=n_aims, ospa=ospa, ospa_loc=loc, ospa_card=card,
+                      mode=mode, objective=plan["objective"], optimal=plan["optimal"], gap=plan["gap"],
                       solve_s=solve_s, step_s=time.perf_counter() - t0),
             targets=dict(t=t, target=ids, exists=truth.exists, detectable=truth.detectable, truth=truth.positions,
                          received_w=received, held=holder >= 0,
@@ -331,28 +599,32 @@ class SwarmSimulation(Stepping):
                         serves=[a.serves for a in self.agents],
                         detections=[int((src >= 0).sum()) for _, src in scans],
                         measurements=[len(Z) for Z, _ in scans],
-                        tracks=[sum(e.existence > CONFIRM for e in mine) for mine in own],
+                        tracks=[sum(e.existence > CONFIRM for e in tracks) for tracks in mine],
                         interference_w=interference, jammed=interference >= b.antenna.delta_w,
-                        to_targets_w=to_target.sum(axis=1), mode=[a.mode for a in self.agents]),
+                        to_targets_w=to_target.sum(axis=1), mode=modes, heard=heard),
             scans=scans,
             p_d=p_d,
         )
         self.log.add(record)
         return record
 
-    def _aims(self, t: int, predicted: list[FusedTrack]) -> list[Aim]:
+    def _aims(self, t: int, predicted: list[FusedTrack], positions: np.ndarray | None = None,
+              memory: SearchMemory | None = None) -> list[Aim]:
         """The step's planning aims: the confirmed predicted tracks, most likely first, then the
-        search aims of the lost ones (``control.fallback: search``), at most ``MAX_AIMS``."""
+        search aims of the lost ones (``control.fallback: search``), at most ``MAX_AIMS``; under
+        the ``comms`` faults, of one agent's view: its fused predicted tracks, the positions it
+        heard this step and its own memory of the lost tracks."""
         b = self.c.base
-        positions = self.positions
+        positions = self.positions if positions is None else positions
 
         def aim(label, mean, cov, search=False):
             return Aim(label, mean, cov, plan_point(mean, positions, b.team.aim, b.low, b.high), search)
 
         sure = [aim(track_label(f), f.estimate.mean, f.estimate.cov) for f in confirmed(predicted)[:MAX_AIMS]]
-        if self.memory is None:
+        memory = self.memory if memory is None else memory
+        if memory is None:
             return sure
-        lost = self.memory.lost(t, sure)[:MAX_AIMS - len(sure)]
+        lost = memory.lost(t, sure)[:MAX_AIMS - len(sure)]
         return sure + [aim(label, m, P, search=True) for label, m, P in lost]
 
     def _plan(self, aims: list[Aim]) -> dict:
@@ -376,14 +648,14 @@ class SwarmSimulation(Stepping):
                     objective=float(sol.objective), optimal=bool(sol.optimal), gap=float(sol.gap))
 
     def _given(self, predicted: list[FusedTrack], moves: np.ndarray, levels: np.ndarray,
-               serves: list[str]) -> tuple[list[Aim], dict]:
+               serves: list[str], positions: np.ndarray | None = None) -> tuple[list[Aim], dict]:
         """The given actions as the step's aims and plan: agent j serves the predicted team track
         that holds the track labelled ``serves[j]`` (a team track's label is one of its members',
         so a label read from the team's tracks after the last step finds its track again when
         fusion regroups it); a label no predicted track holds (the track was pruned) or ``""``
         serves nothing and the antenna keeps its last aim (mode ``hover``)."""
         b = self.c.base
-        positions = self.positions
+        positions = self.positions if positions is None else positions
         holder = {f"a{agent}:{born}.{i}": f for f in predicted for agent, (born, i) in f.members}
         aims: list[Aim] = []
         serve = np.full(len(self.agents), -1)
@@ -420,14 +692,16 @@ class SwarmSimulation(Stepping):
         return [np.array([float(detection_probability(e.mean[:3], a.position, points[j], level_w[j], b.antenna)) > 0.0
                           for e in mine], dtype=bool) for j, (a, mine) in enumerate(zip(self.agents, own))]
 
-    def _feed_back(self, team: list[FusedTrack]) -> None:
-        """Fusion feedback per cluster of two or more agents' tracks (the module docstring)."""
+    def _feed_back(self, team: list[FusedTrack], only: int | None = None) -> None:
+        """Fusion feedback per cluster of two or more agents' tracks (the module docstring);
+        ``only``: into that agent's filter alone (its own view, under the comms faults)."""
         for f in team:
             if len(f.members) < 2:
                 continue
             e = f.estimate
             for agent, label in f.members:
-                self.agents[agent].filter.reset_track(label, e.existence, e.mean, e.cov)
+                if only is None or agent == only:
+                    self.agents[agent].filter.reset_track(label, e.existence, e.mean, e.cov)
 
     def result(self) -> SwarmResult:
         """The logs so far, as column arrays, and their summary."""

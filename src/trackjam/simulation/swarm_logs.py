@@ -51,7 +51,7 @@ class SwarmLog:
             "power_w": a["power_w"], **_xyz("point", a["point"]), "serves": np.array(a["serves"], dtype=str),
             "detections": a["detections"], "measurements": a["measurements"], "tracks": a["tracks"],
             "interference_w": a["interference_w"], "jammed": a["jammed"], "to_targets_w": a["to_targets_w"],
-            "mode": np.array(a["mode"], dtype=str)})
+            "mode": np.array(a["mode"], dtype=str), "heard": np.asarray(a["heard"], dtype=np.int64)})
         for j, (Z, source) in enumerate(r.scans):
             k = len(Z)
             names = np.array([self.ids[i] if i >= 0 else "" for i in source], dtype=str).reshape(k)

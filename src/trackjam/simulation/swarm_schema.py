@@ -53,7 +53,8 @@ SWARM_AGENTS: tuple[Column, ...] = (
     Column("tracks", "int64", "", "its own tracks with existence > 0.5, before fusion"),
     *AGENT_INTERFERENCE,
     Column("to_targets_w", "float64", "W", "power it delivers at the targets, summed over them, Eq. (10)"),
-    Column("mode", "str", "", "track, search (it serves a lost track's search aim) or hover"),
+    Column("mode", "str", "", "track, search (it serves a lost track's search aim), hover or down (it broke down: comms.failures)"),
+    Column("heard", "int64", "", "agents whose predicted tracks of this step it planned with, itself included (comms; 0 when down)"),
 )
 
 SWARM_MEASUREMENTS: tuple[Column, ...] = (
