@@ -95,7 +95,8 @@ def _spy(monkeypatch):
 
 
 def predicted(seen, t):
-    return seen["fused"][2 * (t - 1)]
+    # the first fusion is reset's (the cue's tracks, what a controller may serve), then two a step
+    return seen["fused"][2 * (t - 1) + 1]
 
 
 @pytest.mark.parametrize("extra, lead", [((), 0.0), (("control.lead=1.5",), 1.5), (("control.horizon=4",), None)])
