@@ -218,3 +218,18 @@ def track_label_of(f):
     from trackjam.simulation.swarm import track_label
 
     return track_label(f)
+
+
+def test_the_resource_estimate_counts_a_view_per_agent_under_the_faults():
+    from trackjam.config import load_scenario
+    from trackjam.config.limits import estimate
+
+    base = estimate(load_scenario("swarm-3"))
+    n = 5  # swarm-3's agents
+    for item in ("comms.loss=0.1", "comms.delay_steps=1", "comms.failures=[{agent: 0, step: 3, mode: channel}]"):
+        faulty = estimate(load_scenario("swarm-3", [item]))
+        assert faulty["work_tables"][0] == n * base["work_tables"][0], item
+        assert faulty["work_fusion"][0] == n * base["work_fusion"][0], item
+    assert "memory_messages" not in base
+    late = estimate(load_scenario("swarm-3", ["comms.delay_steps=2"]))["memory_messages"][0]
+    assert late == 2 * estimate(load_scenario("swarm-3", ["comms.delay_steps=1"]))["memory_messages"][0] > 0
