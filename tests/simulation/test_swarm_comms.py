@@ -233,3 +233,23 @@ def test_the_resource_estimate_counts_a_view_per_agent_under_the_faults():
     assert "memory_messages" not in base
     late = estimate(load_scenario("swarm-3", ["comms.delay_steps=2"]))["memory_messages"][0]
     assert late == 2 * estimate(load_scenario("swarm-3", ["comms.delay_steps=1"]))["memory_messages"][0] > 0
+
+
+def test_the_docs_measurement_script_reads_one_runs_held_shares_and_ospa():
+    import importlib.util
+    from pathlib import Path
+
+    from trackjam.config import load_scenario
+    from trackjam.simulation.loop import simulate
+
+    path = Path(__file__).resolve().parents[2] / "docs" / "swarm_comms.py"
+    spec = importlib.util.spec_from_file_location("swarm_comms", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    small = ["steps=3", "filter.particles=300", "filter.birth_particles=100", "comms.loss=0.5"]
+    row = mod.figures(small, 4)
+    s = simulate(load_scenario("swarm-3", [*small, "seed=4"])).summary
+    assert row == [100.0 * v for v in s["held_share"]] + [100.0 * s["held_share_total"], s["ospa_mean"]]
+    m, h = mod.ci95(np.array([1.0, 2.0, 4.0]))
+    assert m == pytest.approx(7 / 3) and h > 0
+    assert list(mod.VARIANTS)[0] == "every message" and mod.VARIANTS["every message"] == []
