@@ -5,8 +5,11 @@ on the same truths; the held share of each target's detectable steps, over all t
 mean OSPA, each fault paired against the faultless run (mean and 95 % t-interval of the
 differences; "n.s." where the interval covers 0).
 
+`swarm-3` sets no `control.node_limit`: the exact solver's 1 s of wall time can bind under load,
+so a seed's run can differ from one machine or load to another.
+
 Run: python docs/swarm_comms.py [SEEDS]   (seeds 1..SEEDS, by default 20; one process, about
-         10 minutes of CPU at 20)"""
+         11 minutes of CPU at 20)"""
 
 import sys
 
