@@ -253,3 +253,15 @@ def test_the_docs_measurement_script_reads_one_runs_held_shares_and_ospa():
     m, h = mod.ci95(np.array([1.0, 2.0, 4.0]))
     assert m == pytest.approx(7 / 3) and h > 0
     assert list(mod.VARIANTS)[0] == "every message" and mod.VARIANTS["every message"] == []
+
+
+def test_once_every_agent_is_down_nothing_is_reported_and_nobody_transmits():
+    down = "comms.failures=[" + ", ".join(f"{{agent: {j}, step: 3, mode: breakdown}}" for j in range(N)) + "]"
+    sim, r, views = run(two(down))
+    late = r.steps["t"] >= 3
+    assert np.all(r.steps["mode"][late] == "down") and not np.any(r.steps["mode"][~late] == "down")
+    assert np.all(r.steps["tracks"][late] == 0) and np.all(r.steps["aims"][late] == 0)
+    detectable = r.steps["targets_detectable"][late] > 0
+    assert np.all(r.steps["ospa"][late][detectable] == sim.c.base.ospa_cutoff)  # every target missed
+    assert not np.any(r.tables["tracks"]["t"] >= 3) and np.all(r.agents["power_w"][r.agents["t"] >= 3] == 0.0)
+    assert all(not v for _, fused, _ in views[2:] for v in fused)

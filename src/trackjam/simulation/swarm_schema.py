@@ -16,7 +16,7 @@ SWARM_STEPS: tuple[Column, ...] = (
     Column("ospa", "float64", "m", "multi-target OSPA(p, c) between the detectable targets and the reported tracks"),
     Column("ospa_loc", "float64", "m", "its localisation part"),
     Column("ospa_card", "float64", "m", "its cardinality part (ospa^p = loc^p + card^p)"),
-    Column("mode", "str", "", "track (the solver planned at the aims), search (every aim a lost track's), hover (no aim: the fall-back levels) or external (the actions were given: trackjam.env)"),
+    Column("mode", "str", "", "track (the solver planned at the aims), search (every aim a lost track's), hover (no aim: the fall-back levels), external (the actions were given: trackjam.env) or down (every agent broke down: comms.failures); under the comms faults, the lowest-index working agent's"),
     Column("objective", "float64", "", "the team objective (sum over the aims of Xi_k) of the plan; NaN under hover and external"),
     Column("optimal", "bool", "", "the plan is proven optimal"),
     Column("gap", "float64", "", "certified bound on optimum - objective; NaN without a certificate"),
