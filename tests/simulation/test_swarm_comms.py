@@ -49,7 +49,8 @@ def members_of(view):
 
 @pytest.mark.parametrize("extra", [("fusion.share=posteriors", "fusion.feedback=true"),
                                    ("fusion.share=scans", "control.fallback=search"),
-                                   ("antenna.pointing=truth",)])
+                                   ("antenna.pointing=truth",),
+                                   ("control.solver=grasp", "control.grasp.samples=40", "control.grasp.iterations=3")])
 def test_without_faults_every_agent_planning_from_its_own_view_is_the_teams_one_solve_bit_for_bit(extra):
     s = two(*extra)
     single, a, _ = run(s)
@@ -58,6 +59,7 @@ def test_without_faults_every_agent_planning_from_its_own_view_is_the_teams_one_
     same_tables(a, b)
     assert np.all(a.agents["heard"] == N)
     _, c, _ = run(two(*extra, "comms.loss=0"))  # given explicitly
+    assert s.control.solver == ("grasp" if "control.solver=grasp" in extra else "exact")
     same_tables(a, c)
 
 
@@ -89,14 +91,19 @@ def test_with_every_message_lost_each_agent_fuses_plans_and_reports_from_its_own
     assert np.all(r.tables["tracks"]["members"] == 1)
 
 
-def test_some_lost_messages_leave_agents_with_different_views_and_one_seed_gives_one_run():
-    s = two("comms.loss=0.3", steps=8)
+GRASP = ("control.grasp.samples=40", "control.grasp.iterations=3", "control.grasp.threads=2")
+
+
+@pytest.mark.parametrize("solver, extra", [("exact", ()), ("grasp", GRASP)])
+def test_some_lost_messages_leave_agents_with_different_views_and_one_seed_gives_one_run(solver, extra):
+    # under grasp a row that is not the planner's searches with a stream spawned from the planner's
+    s = two("comms.loss=0.3", *extra, solver=solver, steps=8)
     _, a, _ = run(s)
     _, b, _ = run(s)
     same_tables(a, b)
     heard = a.agents["heard"]
     assert heard.min() >= 1 and heard.max() <= N and heard.min() < N  # some message lost, some arrived
-    _, c, _ = run(two("comms.loss=0.3", "seed=2", steps=8))
+    _, c, _ = run(two("comms.loss=0.3", "seed=2", *extra, solver=solver, steps=8))
     assert not np.array_equal(c.agents["heard"], heard)
 
 
