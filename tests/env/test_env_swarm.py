@@ -65,7 +65,7 @@ def test_spaces_and_layouts_on_swarm_3():
     assert env.possible_agents == [f"agent_{j}" for j in range(5)] and env.track_slots == 4
     assert env.action_space("agent_4").nvec.tolist() == [n_moves, n_levels, 5]
     names = swarm_observation_layout(5, 4)
-    assert len(names) == len(set(names)) == env.observation_space("agent_0").shape[0] == 3 + 10 * 4 + 3 * 4 + 1
+    assert len(names) == len(set(names)) == env.observation_space("agent_0").shape[0] == 3 + 10 * 4 + 5 * 4 + 1
     state = swarm_state_layout(5, 3)
     assert len(state) == len(set(state)) == env.state_space.shape[0] == 4 * 5 + 9 * 3 + 1
     assert env.target_ids == ["a", "b", "c"]
@@ -105,8 +105,9 @@ def test_the_observation_holds_the_position_the_teams_tracks_in_slots_and_the_te
         o = dict(zip(names, obs[a]))
         np.testing.assert_allclose([o["own.x"], o["own.y"], o["own.z"]], sim.positions[j], atol=1e-5)
         mates = [k for k in range(3) if k != j]
-        for slot, k in enumerate(mates, start=1):
+        for slot, k in enumerate(mates, start=1):  # every message arrives: where it is now
             np.testing.assert_allclose([o[f"mate{slot}.{c}"] for c in "xyz"], sim.positions[k], atol=1e-5)
+            assert o[f"mate{slot}.received"] == 1 and o[f"mate{slot}.age"] == 0
         shown = infos[a]["slots"]
         for s, f in enumerate(sim.sure[:4], start=1):
             assert o[f"track{s}.occupied"] == 1 and shown[s - 1] == track_label(f)
@@ -167,7 +168,7 @@ def test_a_label_held_by_a_member_serves_its_cluster_and_a_gone_track_keeps_the_
 def test_an_empty_or_vanished_slot_serves_nothing_and_the_info_says_so():
     env = two_env()
     env.reset(seed=1)
-    env._slot_labels = [env._slot_labels[0], "a7:7.7"]  # a track that no prediction holds
+    env._slot_labels = [[labels[0], "a7:7.7"] for labels in env._slot_labels]  # a track that no prediction holds
     aims = np.array([a.aim for a in env.sim.agents])
     _, _, _, _, infos = env.step({"agent_0": [0, 1, 2], "agent_1": [0, 1, 4], "agent_2": [0, 1, 1]})
     assert infos["agent_0"]["track"] == "a7:7.7" and infos["agent_0"]["track_gone"] and infos["agent_0"]["served"] == ""

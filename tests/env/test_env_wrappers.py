@@ -34,7 +34,11 @@ def two_env(**kw):
     return parallel_env(two_targets("steps=4"), **kw)
 
 
-MAKERS = pytest.mark.parametrize("make", [one_env, two_env], ids=["one-target", "two-targets"])
+def lossy_env(**kw):  # each agent on its own view: the teammates' received flags and ages
+    return parallel_env(two_targets("steps=4", "comms.loss=0.5"), **kw)
+
+
+MAKERS = pytest.mark.parametrize("make", [one_env, two_env, lossy_env], ids=["one-target", "two-targets", "lossy"])
 
 
 def layouts(env):
@@ -228,3 +232,25 @@ def test_rollout_and_the_solver_policy_take_a_wrapped_environment_and_give_the_b
         mine, theirs = rollout(wrapped, b, [3]), rollout(bare, a, [3])
         assert [r["return"] for r in mine] == [r["return"] for r in theirs]
         assert [r["steps"] for r in mine] == [r["steps"] for r in theirs] == [4]
+
+
+def test_a_teammates_received_flag_and_age_are_scaled_from_their_bounds_and_its_position_by_the_area():
+    # under comms.loss 1 nothing is heard: received 0 reads -1, the age (t / steps) climbs from -1 to
+    # 1 at the last step, the position (its start, the briefing) is scaled by the area as the agent's own
+    env = normalized(parallel_env(two_targets("steps=4", "comms.loss=1")))
+    names = swarm_observation_layout(3, env.track_slots)
+    low, high, _ = area(env)
+    start = env.sim.positions.copy()
+    obs, _ = env.reset(seed=1)
+    ages = []
+    while env.agents:
+        obs, *_ = env.step({a: np.array([1, 2, 0]) for a in env.agents})
+        o = dict(zip(names, obs["agent_0"]))
+        assert o["mate1.received"] == o["mate2.received"] == -1
+        assert o["mate1.age"] == o["mate2.age"]
+        ages.append(float(o["mate1.age"]))
+        for slot, k in ((1, 1), (2, 2)):
+            want = 2 * (start[k] - low) / (high - low) - 1
+            np.testing.assert_allclose([o[f"mate{slot}.{c}"] for c in "xyz"], want, atol=1e-6)
+    assert ages == pytest.approx([2 * t / 4 - 1 for t in range(1, 5)])  # age t / steps, [0, 1] onto [-1, 1]
+    assert not np.allclose(env.sim.positions[1:], start[1:])  # they moved; the agent never heard it

@@ -33,7 +33,8 @@ def parallel_env(scenario: Scenario, jam_penalty: float = 1.0, render_mode: str 
     """The team as a PettingZoo ``ParallelEnv`` on ``scenario`` (a :class:`Scenario`, e.g. from
     :func:`trackjam.load_scenario`); ``jam_penalty`` is lambda of the reward. A scenario with
     several ``targets`` gives a :class:`SwarmParallelEnv` (the swarm engine), whose agents
-    observe and may serve ``track_slots`` of the team's tracks (default 4); one target gives a
+    observe and may serve ``track_slots`` of their view's tracks (default 4; the team's view
+    without ``comms`` faults, each agent's own under them); one target gives a
     :class:`TrackjamParallelEnv`, which has no slots. ``render_size`` = (width, height) makes
     ``render()`` under ``render_mode="rgb_array"`` return a frame of that many pixels (the
     figure scaled to fit, its aspect kept) instead of the whole figure."""

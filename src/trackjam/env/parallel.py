@@ -258,13 +258,14 @@ class TrackjamParallelEnv(ParallelEnv):
         self._ended = None
         obs = self._first_observations()
         return obs, {a: {"t": 0, "seed": self._seed, "action_mask": self._action_mask(self._index[a]),
-                         **self._reset_info()}
+                         **self._reset_info(self._index[a])}
                      for a in self.agents}
 
     def _first_observations(self) -> dict:
         return self._observations(received=[[] for _ in self.possible_agents])
 
-    def _reset_info(self) -> dict:
+    def _reset_info(self, j: int) -> dict:
+        """Agent j's entries of the reset info beyond the step, seed and action mask."""
         return {}
 
     def state(self) -> np.ndarray:

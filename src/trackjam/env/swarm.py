@@ -4,14 +4,21 @@ SwarmSimulation`): a scenario with several ``targets``, e.g. ``swarm-3``.
 An action is ``[move, level, slot]``: an index into Eq. (3)'s displacement set (0 = hover), an
 index into the transmit levels L, and the track the agent's antenna serves: 0 none (the antenna
 keeps pointing at its last aim), S in 1..M the track in slot S of the observation the agent
-acted on. The environment keeps the label each slot showed and hands the engine that label, so
-a slot means the same track from the observation to the step that applies it, whatever the
-slots hold by then; the engine serves the predicted team track holding that label (fusion may
-regroup it under another team label), and when none does (the track was pruned), or the slot
-was empty, the antenna keeps its last aim (the info says ``track_gone``). Observations and the
-global state: :mod:`trackjam.env.swarm_observation`; the reward: :mod:`trackjam.env.reward`. An
-episode terminates when every target is downed or has flown out of the area, and is truncated
-after ``steps``.
+acted on. The environment keeps, per agent, the label each of its slots showed and hands the
+engine that label, so a slot means the same track from the observation to the step that
+applies it, whatever the slots hold by then; the engine serves the predicted track of the
+agent's own view holding that label (fusion may regroup it under another label), and when none
+does (the track was pruned, or under the ``comms`` faults the agent no longer holds it), or the
+slot was empty, the antenna keeps its last aim (the info says ``track_gone``).
+
+Each agent observes its own view: without the ``comms`` faults every message arrives and every
+agent's view is the team's (``sim.sure``); under them (``sim.distributed``) agent j's slots hold
+the confirmed tracks of its own fused view (``sim.views[j]``) and its teammates' positions are
+what it last heard (``sim.known[j]``). An agent that broke down (``comms.failures``, mode
+``down``) stays in the episode: its action is ignored and its info says ``mode: down``.
+Observations and the global state: :mod:`trackjam.env.swarm_observation`; the reward:
+:mod:`trackjam.env.reward`. An episode terminates when every target is downed or has flown out
+of the area, and is truncated after ``steps``.
 """
 
 from __future__ import annotations
@@ -33,8 +40,9 @@ from trackjam.env.swarm_observation import (
     swarm_state_bounds,
 )
 from trackjam.errors import ConfigError
+from trackjam.estimation.lmb_fusion import fuse_tracks_unchecked
 from trackjam.simulation.build import figure_settings
-from trackjam.simulation.swarm import MAX_AIMS, SwarmRecord, SwarmSimulation, track_label
+from trackjam.simulation.swarm import MAX_AIMS, SwarmRecord, SwarmSimulation, confirmed, track_label
 from trackjam.world.moves import admissible_moves
 
 if TYPE_CHECKING:  # the scenario is only handed on: simulation/build.py reads it
@@ -49,7 +57,7 @@ def member_labels(track: FusedTrack) -> set[str]:
 
 
 class SwarmParallelEnv(TrackjamParallelEnv):
-    """The team against several targets; ``track_slots`` (M) is how many of the team's confirmed
+    """The team against several targets; ``track_slots`` (M) is how many of its view's confirmed
     tracks an agent observes and may serve (default, or None: as many as the engine plans at, 4)."""
 
     metadata = {"name": "trackjam_swarm_v0", "render_modes": ["rgb_array"], "render_fps": 1}
@@ -59,7 +67,8 @@ class SwarmParallelEnv(TrackjamParallelEnv):
                  replay_path: str = "replay.html", track_slots: int | None = MAX_AIMS,
                  render_size: tuple[int, int] | None = None) -> None:
         self.track_slots = checked_slots(MAX_AIMS if track_slots is None else track_slots)
-        self._slot_labels: list[str] = []  # the label each occupied slot showed in the last observation
+        # per agent, the label each of its occupied slots showed in its last observation
+        self._slot_labels: list[list[str]] = []
         super().__init__(scenario, jam_penalty=jam_penalty, render_mode=render_mode, replay_path=replay_path,
                          render_size=render_size)
 
@@ -105,12 +114,14 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         self._held = np.zeros(len(self.sim.c.ids), dtype=bool)
         return self._observations()
 
-    def _reset_info(self) -> dict:
-        return {"slots": self._slots_shown()}
+    def _reset_info(self, j: int) -> dict:
+        return {"slots": self._slots_shown(j)}
 
-    def _slots_shown(self) -> list[str]:
-        """The label each slot holds now ("" for an empty one), what an action's slot will name."""
-        return self._slot_labels + [""] * (self.track_slots - len(self._slot_labels))
+    def _slots_shown(self, j: int) -> list[str]:
+        """The label each of agent j's slots holds now ("" for an empty one), what its action's
+        slot will name."""
+        labels = self._slot_labels[j]
+        return labels + [""] * (self.track_slots - len(labels))
 
     def state(self) -> np.ndarray:
         """The global state, for a centralised critic (``trackjam.env.swarm_state_layout``
@@ -127,7 +138,7 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         every level, then the slots: "none" and each occupied slot."""
         b = self.sim.c.base
         moves = admissible_moves(self.sim.agents[j].position, b.displacements, b.low, b.high)
-        slots = np.arange(self.track_slots + 1) <= len(self._slot_labels)
+        slots = np.arange(self.track_slots + 1) <= len(self._slot_labels[j])
         return np.concatenate([moves, np.ones(len(b.antenna.levels_w), dtype=bool), slots])
 
     def _external_step(self, actions: dict) -> tuple[SwarmRecord, np.ndarray]:
@@ -139,8 +150,7 @@ class SwarmParallelEnv(TrackjamParallelEnv):
             moves[j], levels[j], slots[j] = checked_action(name, actions[name], self.action_spaces[name],
                                                            self.ACTION_WORDS)
         hovered = hover_outside(moves, self.sim.positions, b.displacements, b.low, b.high)
-        shown = self._slots_shown()
-        named = [shown[s - 1] if s else "" for s in slots]
+        named = [self._slots_shown(j)[s - 1] if s else "" for j, s in enumerate(slots)]
         record = self.sim.step((moves, levels, named))
         self._named = (slots, named)
         return record, hovered
@@ -152,10 +162,11 @@ class SwarmParallelEnv(TrackjamParallelEnv):
 
     def _planned_step(self, planned: list[Planned]) -> SwarmRecord:
         self._plan_with(self._planned_solver(planned))
-        shown = self._slots_shown()
+        shown = [self._slots_shown(j) for j in range(len(self.possible_agents))]
         record = self.sim.step()
         served = [str(s) for s in record.agents["serves"]]  # the solver's choice, as an action would name it
-        self._named = (np.array([shown.index(s) + 1 if s and s in shown else 0 for s in served]), served)
+        self._named = (np.array([shown[j].index(s) + 1 if s and s in shown[j] else 0 for j, s in enumerate(served)]),
+                       served)
         return record
 
     def _outcome(self, record: SwarmRecord, hovered: np.ndarray):
@@ -178,17 +189,18 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         moves = np.argmin(np.linalg.norm((ag["pos"] - ag["prev"])[:, None, :] - D[None], axis=2), axis=1)
         slots, named = self._named
         served = [str(s) for s in ag["serves"]]
+        # a broken agent's action was ignored: its move was not replaced and its track not lost
+        up = [str(m) != "down" for m in ag["mode"]]
         obs = self._observations()
-        shown = self._slots_shown()
         live = list(self.agents)
         infos = {
             a: {
                 "t": record.t, "move": int(moves[j]), "level": int(ag["level_index"][j]), "slot": int(slots[j]),
-                "track": named[j], "served": served[j], "track_gone": bool(named[j]) and not served[j],
-                "hovered": bool(hovered[j]), "p_d": record.p_d[j].copy(),
+                "track": named[j], "served": served[j], "track_gone": up[j] and bool(named[j]) and not served[j],
+                "hovered": up[j] and bool(hovered[j]), "p_d": record.p_d[j].copy(),
                 "interference_w": float(ag["interference_w"][j]), "jammed": bool(ag["jammed"][j]),
                 "violation": float(v[j]), "xi": xi, "xi_targets": xi_k.copy(), "mode": str(ag["mode"][j]),
-                "slots": list(shown), "action_mask": self._action_mask(j),
+                "slots": self._slots_shown(j), "action_mask": self._action_mask(j),
                 **({"end": self._ended} if (terminated or truncated) else {}),
             }
             for a, j in ((a, self._index[a]) for a in live)
@@ -198,23 +210,62 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         return (obs, {a: reward for a in live}, {a: terminated for a in live}, {a: truncated for a in live},
                 infos)
 
-    def _observations(self) -> dict:
-        """Every agent's observation, and the slots' labels for the next actions."""
+    def _views(self) -> list[list[FusedTrack]]:
+        """Each agent's confirmed tracks, most likely first (:func:`confirmed`). Without the
+        ``comms`` faults every agent's view is the team's, ``sim.sure`` (before the first step the
+        cue's tracks). Under them each agent's own fused view after the last step,
+        ``sim.views[j]`` (none while it is down), and before the first step its own filter's
+        tracks (the cue's, as it holds them, under its own labels: those its first predicted view
+        holds whoever it hears)."""
+        sim = self.sim
+        n = len(self.possible_agents)
+        if not sim.distributed:
+            return [sim.sure] * n
+        if sim.t == 0:
+            return [confirmed(fuse_tracks_unchecked([a.filter.estimates() if k == j else [] for k, a in
+                                                     enumerate(sim.agents)])) for j in range(n)]
+        seen: dict[int, list[FusedTrack]] = {}  # agents that fused the same messages share a view
+        for view in sim.views:
+            if id(view) not in seen:
+                seen[id(view)] = confirmed(view)
+        return [seen[id(view)] for view in sim.views]
+
+    def _mates(self, j: int, positions: np.ndarray) -> list[tuple[np.ndarray, bool, float]]:
+        """What agent j last heard of each teammate, in index order: (position clipped to the
+        area, heard this step, age as a share of the episode). Without the ``comms`` faults every
+        message arrives: the position after the move, heard, age 0. Under them the position of
+        the last prediction that reached it (``sim.known[j][k]``, announced before that step's
+        move), the briefing (k's start, at step 0) when none did."""
         sim, b = self.sim, self.sim.c.base
-        tracks = sim.sure[: self.track_slots]
-        self._slot_labels = [track_label(f) for f in tracks]
+        n = len(self.possible_agents)
+        if not sim.distributed:
+            return [(positions[k], True, 0.0) for k in range(n) if k != j]
+        out = []
+        for k in range(n):
+            if k != j:
+                stamp, u = sim.known[j][k]
+                out.append((np.clip(u, b.low, b.high), stamp == sim.t, (sim.t - stamp) / b.steps))
+        return out
+
+    def _observations(self) -> dict:
+        """Every agent's observation, and its slots' labels for its next action."""
+        sim, b = self.sim, self.sim.c.base
+        views = [view[: self.track_slots] for view in self._views()]
+        self._slot_labels = [[track_label(f) for f in view] for view in views]
         serves = [a.serves for a in sim.agents]
         n = len(serves)
-        members = [member_labels(f) for f in tracks]
-        share = [sum(s in m for s in serves) / n for m in members]
         positions = np.clip(sim.positions, b.low, b.high)
         fraction = sim.t / b.steps
-        return {
-            a: swarm_observe(j, positions, [(f.estimate.mean, f.estimate.existence, serves[j] in m, sh)
-                                            for f, m, sh in zip(tracks, members, share)],
-                             self.track_slots, fraction)
-            for a, j in ((a, self._index[a]) for a in self.possible_agents)
-        }
+        out = {}
+        for a, j in ((a, self._index[a]) for a in self.possible_agents):
+            tracks = []
+            for f in views[j]:
+                m = member_labels(f)
+                # under the faults no message says what a teammate served: the agent knows its own antenna
+                share = float(serves[j] in m) / n if sim.distributed else sum(s in m for s in serves) / n
+                tracks.append((f.estimate.mean, f.estimate.existence, serves[j] in m, share))
+            out[a] = swarm_observe(positions[j], tracks, self._mates(j, positions), self.track_slots, fraction)
+        return out
 
     # -- rendering -------------------------------------------------------------------------
 

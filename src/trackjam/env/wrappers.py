@@ -5,7 +5,8 @@ Every entry x is mapped by one affine map, y = (x - centre) / half-width, whose 
 half-width come from the entry's range:
 
 - an entry the environment's Box bounds (the agents' own and teammates' positions by the area,
-  existence, flags, shares, time in [0, 1], the swarm state's level indices in [0, L - 1]) is
+  existence, flags, shares, a teammate's age and time in [0, 1], the swarm state's level indices
+  in [0, L - 1]) is
   mapped from its Box bounds onto [-1, 1], and the wrapped Box says [-1, 1];
 - an entry the environment leaves unbounded (a filter's or track's estimate, the true target in
   the state) has no bound to map from: a position (``.x/.y/.z``) is scaled by the area as the
@@ -17,7 +18,8 @@ half-width come from the entry's range:
   unbounded entry that is neither is refused at construction (none is today).
 
 A 0 of the environment (an empty slot, a teammate not heard from) is therefore not 0 once
-wrapped: a flag reads -1, a position of 0 m the area's low wall's value.
+wrapped: a flag reads -1, a position of 0 m (one target: an unheard teammate's) the area's low
+wall's value.
 """
 
 from __future__ import annotations
