@@ -8,7 +8,7 @@ import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 from trackjam.config import load_scenario
-from trackjam.env import parallel_env, random_policy, solver_policy, swarm_observation_layout
+from trackjam.env import parallel_env, solver_policy, swarm_observation_layout
 from trackjam.simulation.swarm import confirmed, track_label
 
 from swarm_scenarios import two_targets
@@ -216,3 +216,22 @@ def test_the_per_agent_path_with_every_message_delivered_sees_the_teams_tracks_a
                 np.testing.assert_allclose(mate(ol, slot)[1], prev[k], atol=1e-5)
                 np.testing.assert_allclose(mate(ob, slot)[1], bare.sim.positions[k], atol=1e-5)
     assert shared > 0 and not np.allclose(prev, bare.sim.positions)
+
+
+def test_under_a_step_of_delay_a_teammate_is_where_it_announced_itself_a_step_late():
+    # a prediction sent at the start of step t - 1 (before that step's move) arrives at step t:
+    # never received this step, one step old, where the teammate stood after step t - 2
+    env = two_env("comms.delay_steps=1")
+    env.reset(seed=1)
+    history = [env.sim.positions.copy()]  # after each step; [0] the start
+    rng = np.random.default_rng(2)
+    while env.agents:
+        obs, _, _, _, infos = env.step({a: np.array([rng.integers(1, 20), 2, 1]) for a in env.agents})
+        history.append(env.sim.positions.copy())
+        t = env.sim.t
+        for j, a in enumerate(env.possible_agents):
+            for slot, k in enumerate(MATES[j], start=1):
+                received, u, age = mate(named(obs)[a], slot)
+                assert received == 0 and age == pytest.approx(1 / 5)
+                np.testing.assert_allclose(u, history[max(t - 2, 0)][k], atol=1e-5)
+    assert not np.allclose(history[-1], history[-3])
