@@ -16,7 +16,15 @@ from test_figure import quiet_run
 
 from trackjam.radio.antenna import inside_cone
 from trackjam.viz.figure import interference_per_step
-from trackjam.viz.replay import MAX_FRAMES, TRAIL_FRAMES, cone_mesh, replay_figure, shown_steps, write_replay
+from trackjam.viz.replay import (
+    MAX_FRAMES,
+    TRAIL_FRAMES,
+    clip_mesh_to_box,
+    cone_mesh,
+    replay_figure,
+    shown_steps,
+    write_replay,
+)
 from trackjam.simulation.build import antenna_model, figure_settings
 
 ERROR_HOOK = """<script>
@@ -276,3 +284,71 @@ def test_the_page_title_names_the_run(tmp_path):
     head = html[: html.index("</head>")]
     assert re.findall(r"<title>(.*?)</title>", head) == [
         f"trackjam replay: fig3 &lt;b&gt;&amp;&lt;/b&gt; (solver {fs.solver})"]
+
+
+def _triangle_areas(v, f):
+    t = np.asarray(v, dtype=float)[np.asarray(f)]
+    return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+
+
+def test_clip_mesh_to_box_keeps_the_part_inside_and_nothing_else():
+    """A cone across two walls is cut there: every vertex inside, the surface kept is the part of
+    the cone's surface inside the box (sampled), its apex is kept; a cone inside is untouched, one
+    outside is gone."""
+    low, high = np.zeros(3), np.array([100.0, 100.0, 50.0])
+    apex, point = np.array([5.0, 50.0, 35.0]), np.array([20.0, 60.0, 50.0])
+    v, f = cone_mesh(apex, point, 40.0, np.deg2rad(40))
+    assert ((v < low) | (v > high)).any()  # the cone reaches past the walls x = 0 and z = 50
+    cv, cf = clip_mesh_to_box(v, f, low, high)
+    cv = np.asarray(cv)
+    assert len(cf) > 0 and cf.max() < len(cv)
+    assert ((cv >= low) & (cv <= high)).all()
+    assert np.isclose(cv, apex).all(axis=1).any()
+    # the surface kept: sample the cone's surface, the share inside times its area
+    rng = np.random.default_rng(3)
+    areas = _triangle_areas(v, f)
+    pick = rng.choice(len(f), size=200_000, p=areas / areas.sum())
+    a, b = rng.random((2, len(pick), 1))
+    flip = a + b > 1
+    a, b = np.where(flip, 1 - a, a), np.where(flip, 1 - b, b)
+    t = v[f[pick]]
+    sample = t[:, 0] + a * (t[:, 1] - t[:, 0]) + b * (t[:, 2] - t[:, 0])
+    share = ((sample >= low) & (sample <= high)).all(axis=1).mean()
+    assert 0.05 < share < 0.95, share
+    assert _triangle_areas(cv, cf).sum() == pytest.approx(share * areas.sum(), rel=0.01)
+    inside_v, inside_f = cone_mesh(np.array([50.0, 50.0, 10.0]), np.array([50.0, 50.0, 40.0]), 20.0, 0.5)
+    same_v, same_f = clip_mesh_to_box(inside_v, inside_f, low, high)
+    assert same_v is inside_v and same_f is inside_f
+    far_v, far_f = clip_mesh_to_box(v + [500.0, 0, 0], f, low, high)
+    assert len(far_f) == 0
+
+
+def test_replay_cones_stay_inside_the_area():
+    """With agents near the walls and the corners, no cone vertex of any frame lies outside the
+    area (the scene's axes): the cones had been drawn through the walls."""
+    s = fake_scenario(8)
+    s = s.model_copy(update={"agents": s.agents.model_copy(update={
+        "initial": [[1.0, 1.0, 1.0], [99.0, 50.0, 98.0], [50.0, 99.5, 0.5]]})})
+    steps, agents, scenario = fake_run(s)
+    fs = figure_settings(scenario)
+    low, high = fs.low, fs.high
+    fig = replay_figure(steps, agents, fs)
+    ant = fs.antenna
+    T, N = scenario.steps, scenario.n_agents
+    u = np.stack([agents[a] for a in "xyz"], axis=1).reshape(T, N, 3)
+    point = np.stack([agents[f"point_{a}"] for a in "xyz"], axis=1).reshape(T, N, 3)
+    power = agents["power_w"].reshape(T, N)
+    reaching_out = cut = 0
+    for k, frame in enumerate(fig["frames"]):
+        cones = [tr for tr in frame["data"] if tr["type"] == "mesh3d"]
+        for j, cone in enumerate(cones):
+            xyz = np.array([cone[a] for a in "xyz"], dtype=float).T
+            assert np.isfinite(xyz).all()
+            assert ((xyz >= low) & (xyz <= high)).all(), (k, j, xyz.min(axis=0), xyz.max(axis=0))
+            if power[k, j] > 0:
+                full, _ = cone_mesh(u[k, j], point[k, j], ant.height, ant.half_angle)
+                if ((full < low) | (full > high)).any():
+                    reaching_out += 1
+                    cut += len(cone["i"]) != 2 * (len(full) - 2)
+                assert np.ptp(xyz, axis=0).max() > 0  # cut, still drawn
+    assert reaching_out > 5 and cut == reaching_out  # the test has cones to cut, and they were

@@ -8,7 +8,9 @@ agents u_t^j with their sensing cones (apex at the agent, axis toward the point 
 aimed at, height h_a along the axis, full opening angle theta_a: docs/model.md, Antenna), the true
 target and the fused estimate with their trails, the agents that are jammed (red ring, the sum of
 the power received from the others >= delta) and a dashed red link from each sender j to a
-receiver i it jams by itself (R_ij >= delta). An antenna that is off draws no cone.
+receiver i it jams by itself (R_ij >= delta). An antenna that is off draws no cone; a cone that
+reaches past the area's walls is cut there (the scene's axes are the area, and plotly would
+otherwise draw it outside them).
 """
 
 from __future__ import annotations
@@ -52,11 +54,68 @@ def _xyz(p: np.ndarray) -> dict[str, list]:
     return {ax: [float(v) if np.isfinite(v) else None for v in p[:, i]] for i, ax in enumerate("xyz")}
 
 
-def _cone_trace(j: int, apex, point, on: bool, ant: AntennaModel) -> Trace:
+def drawable_box(low, high) -> tuple[np.ndarray, np.ndarray]:
+    """The area's corners moved inward onto the millimetre grid :func:`_xyz` rounds to, so that a
+    vertex inside this box is still inside the area once rounded."""
+    return (np.ceil(np.round(np.asarray(low, dtype=float) * 1000, 6)) / 1000,
+            np.floor(np.round(np.asarray(high, dtype=float) * 1000, 6)) / 1000)
+
+
+def clip_mesh_to_box(vertices: np.ndarray, faces: np.ndarray, low, high) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles ``faces`` of ``vertices`` cut to the box [low, high]: a triangle inside stays,
+    one outside goes, one across a wall keeps its part inside (one triangle or two), so the mesh
+    ends at the walls (open there, as a cone meeting a wall is seen). A mesh inside the box is
+    returned as it is; otherwise a triangle soup: vertices (3 m, 3), faces ``arange(3 m)``,
+    orientation kept. An empty result has no faces."""
+    vertices = np.asarray(vertices, dtype=float)
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    if np.all((vertices >= low) & (vertices <= high)):
+        return vertices, faces
+    tri = vertices[np.asarray(faces)]  # (m, 3 corners, 3 coordinates)
+    for axis in range(3):
+        for bound, sign in ((low[axis], 1.0), (high[axis], -1.0)):
+            d = sign * (tri[:, :, axis] - bound)  # >= 0 inside this wall
+            inside = d >= 0
+            n_in = inside.sum(axis=1)
+            keep = tri[n_in == 3]
+            parts = [keep]
+            for count in (1, 2):
+                sel = n_in == count
+                if not sel.any():
+                    continue
+                t, dd = tri[sel], d[sel]
+                # turn each triangle (cyclically, so its orientation stays) to start at its one
+                # corner inside (count 1) or its one corner outside (count 2)
+                odd = inside[sel] if count == 1 else ~inside[sel]
+                first = np.argmax(odd, axis=1)
+                order = (first[:, None] + np.arange(3)) % 3
+                rows = np.arange(len(t))[:, None]
+                t, dd = t[rows, order], dd[rows, order]
+                v0, v1, v2 = t[:, 0], t[:, 1], t[:, 2]
+                d0, d1, d2 = dd[:, 0:1], dd[:, 1:2], dd[:, 2:3]
+                p01 = v0 + d0 / (d0 - d1) * (v1 - v0)
+                p02 = v0 + d0 / (d0 - d2) * (v2 - v0)
+                p01[:, axis] = bound
+                p02[:, axis] = bound
+                if count == 1:  # v0 inside: the corner at v0
+                    parts.append(np.stack([v0, p01, p02], axis=1))
+                else:  # v0 outside: the quadrilateral v1 v2 p02 p01, as two triangles
+                    parts.append(np.stack([v1, v2, p02], axis=1))
+                    parts.append(np.stack([v1, p02, p01], axis=1))
+            tri = np.concatenate(parts, axis=0)
+    tri = np.clip(tri, low, high)  # what rounding of the cuts left a hair outside
+    return tri.reshape(-1, 3), np.arange(3 * len(tri)).reshape(-1, 3)
+
+
+def _cone_trace(j: int, apex, point, on: bool, ant: AntennaModel, low, high) -> Trace:
+    """The cone of agent ``j`` cut to the box [low, high] (the area, :func:`drawable_box`): the
+    replay draws nothing outside the area."""
+    v = f = None
     if on and np.all(np.isfinite(apex)) and np.all(np.isfinite(point)):
-        v, f = cone_mesh(apex, point, ant.height, ant.half_angle)
-    else:  # a degenerate cone at the agent: nothing to see, the trace stays in place
-        v = np.repeat(np.nan_to_num(np.asarray(apex, dtype=float))[None, :], 3, axis=0)
+        v, f = clip_mesh_to_box(*cone_mesh(apex, point, ant.height, ant.half_angle), low, high)
+    if f is None or len(f) == 0:  # a degenerate cone at the agent: nothing to see, the trace stays in place
+        at = np.clip(np.nan_to_num(np.asarray(apex, dtype=float)), low, high)
+        v = np.repeat(at[None, :], 3, axis=0)
         f = np.array([[0, 1, 2]])
     return dict(
         type="mesh3d", **_xyz(v), i=f[:, 0].tolist(), j=f[:, 1].tolist(), k=f[:, 2].tolist(),
@@ -86,7 +145,7 @@ def shown_steps(T: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
 
 
 def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant, labels, delta,
-                quality):
+                quality, box):
     """All traces of frame ``f`` (step index ``shown[f]``), always in the same order (plotly
     frames update by index). Trails pass through the last ``TRAIL_FRAMES`` shown steps. The
     estimate is drawn in its step's track-quality colour (the run figure's band (i)), so a false
@@ -114,7 +173,7 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
                                       f"<br>interference {_db(R[f, j].sum())}"],
                            hoverinfo="text"))
     for j in range(N):
-        data.append(_cone_trace(j, u[k, j], point[k, j], power[k, j] > 0, ant))
+        data.append(_cone_trace(j, u[k, j], point[k, j], power[k, j] > 0, ant, *box))
     hit = np.flatnonzero(jammed[k])
     # a trace with no point leaves the legend: an empty step gets one NaN point instead
     data.append(_point(u[k, hit] if len(hit) else np.full((1, 3), np.nan), "jammed agent (red ring)",
@@ -165,12 +224,13 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
     labels = level_labels(fs)
     quality = np.asarray(CLASSES)[step_classes(steps, fs.gate)]
 
+    box = drawable_box(fs.low, fs.high)  # the cones are cut at the area's walls
     every = "" if len(shown) == T else f"   |   {len(shown)} of {T} steps shown"
     frames = [
         dict(
             name=str(int(steps["t"][k])),
             data=_frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jammed, R, ant,
-                             labels, ant.delta_w, quality),
+                             labels, ant.delta_w, quality, box),
             layout=dict(title=dict(text=_title(steps, k, quality) + every)),
         )
         for f, k in enumerate(shown)
