@@ -141,3 +141,18 @@ def test_an_option_the_swarm_engine_does_not_read_is_refused_up_front_in_a_grid_
     assert r.output.startswith("trackjam: error: --set control.plan_over=belief: control.plan_over: 'belief' is not "
                                "simulated with several targets yet") and r.output.count("\n") == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_the_solver_column_names_the_solver_every_trial_of_the_row_runs():
+    """summary.csv's `solver` is read from the cell's first trial; every trial of every cell, on
+    either engine, runs that solver (both engines plan with the scenario's control.solver), and
+    a --set of it is what the column says."""
+    from trackjam.experiments.engine import _plan
+    from trackjam.experiments.swarm import swarm_experiment
+
+    for overrides, solver in ((SHORT, "exact"), ([*SHORT, "control.solver=greedy"], "greedy")):
+        experiment = swarm_experiment("1x2,3")
+        scenarios, rows = _plan(experiment, 2, 3, 0, overrides)
+        assert [(r["label"], r["solver"]) for r in rows] == [(c.label, solver) for c in experiment.configurations]
+        assert {s.control.solver for s in scenarios.values()} == {solver}
+        assert {s.targets is None for s in scenarios.values()} == {True, False}  # both engines
