@@ -10,7 +10,7 @@ import errno
 import functools
 import sys
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, NoReturn, Optional
 
 import typer
 from typer.core import TyperCommand, TyperGroup
@@ -237,6 +237,33 @@ def interrupted(err: BaseException) -> bool:
     return _cause(err, KeyboardInterrupt) is not None
 
 
+def _stopped_by_signal(err: BaseException) -> str | None:
+    """What a signal made of `run`'s write, for its one line: "interrupted" for a Ctrl-C (the
+    KeyboardInterrupt itself), "terminated" for a SIGTERM (its handler's SystemExit(143), or an
+    error it caused: an ImportError when it landed while matplotlib's compiled module loaded);
+    None for anything else, an error a Ctrl-C caused included (:func:`user_errors` says that one)."""
+    if isinstance(err, KeyboardInterrupt):
+        return "interrupted"
+    return "terminated" if _terminated_by(err) is not None else None
+
+
+def _end_stopped_write(err: BaseException, line: str) -> NoReturn:
+    """Say ``line`` (what the folder holds now) for ``err``, a signal's end of `run`'s write
+    (:func:`_stopped_by_signal`), and end with its status: a Ctrl-C exits 130; a SIGTERM's own
+    SystemExit(143) goes on as it is; an error a SIGTERM caused ends as :func:`_say_terminated`
+    ends one (at once when it landed in a compiled module's import)."""
+    global _said_interrupted, _said_terminated
+    if isinstance(err, KeyboardInterrupt):
+        typer.echo(line, err=True)
+        _said_interrupted = True
+        raise typer.Exit(130) from None
+    if not isinstance(err, SystemExit):
+        _say_terminated(err, line)
+    _said_terminated = True
+    typer.echo(line, err=True)
+    raise err
+
+
 # the longest paths a command writes under its --out (checked with --out itself, before any work):
 # a run's file in its staging folder (trackjam.simulation.output's STAGING, mkdtemp's 8 random
 # characters, its longest file name), a sweep's trial file's temporary name (at most 20,000 runs:
@@ -418,27 +445,17 @@ def run(
 
     try:
         files = write_run(result, out, figures=figures, on_wait=waiting)
-    except BaseException as err:  # a Ctrl-C or SIGTERM: one line, saying what the folder holds now
-        # (or an error one caused: an ImportError when it landed while matplotlib's compiled module loaded)
-        if not isinstance(err, KeyboardInterrupt) and _terminated_by(err) is None:
+    except BaseException as err:
+        how = _stopped_by_signal(err)
+        if how is None:
             raise
-        global _said_interrupted, _said_terminated
-        how = "interrupted" if isinstance(err, KeyboardInterrupt) else "terminated"
         if getattr(err, WROTE, False):  # it came while the last renames held it back: the run is there
-            line = f"trackjam: {how} after writing {printable(str(out))} in full"
+            held = f"after writing {printable(str(out))} in full"
         elif existed:  # else the write removed the folders it made
-            line = f"trackjam: {how} while writing {printable(str(out))}; nothing in it was changed"
+            held = f"while writing {printable(str(out))}; nothing in it was changed"
         else:
-            line = f"trackjam: {how} while writing {printable(str(out))}; nothing was written"
-        if not isinstance(err, KeyboardInterrupt):
-            if isinstance(err, SystemExit):
-                _said_terminated = True
-                typer.echo(line, err=True)
-                raise
-            _say_terminated(err, line)
-        typer.echo(line, err=True)
-        _said_interrupted = True
-        raise typer.Exit(130) from None
+            held = f"while writing {printable(str(out))}; nothing was written"
+        _end_stopped_write(err, f"trackjam: {how} {held}")
     m = result.summary
     if "n_targets" in m:
         Console(width=100).print(_swarm_table(s, m))
