@@ -512,3 +512,39 @@ def test_the_experiment_prints_its_paired_comparisons_marking_the_significant_on
     expected = _mean_ci(diff, ci, signed=True) + (" *" if math.isfinite(ci) and abs(diff) > ci else "")
     assert cells[3] == expected  # a -> b, comparison, trials, then incidents
     assert _mean_ci(-0.25, 0.5, 100.0, signed=True) == "-25 ± 50" and _mean_ci(0.1, 0.01, signed=True) == "+0.1 ± 0.01"
+
+
+@pytest.mark.parametrize("default", [False, True])
+def test_a_run_refused_for_files_made_in_its_folder_while_it_ran_says_so(tmp_path, monkeypatch, default):
+    # the folder was checked empty before the run; another process wrote there while it stepped:
+    # the refusal read as if the folder had held them all along ("choose a new or empty folder")
+    from typer.testing import CliRunner
+
+    from trackjam import cli
+    from trackjam.simulation import loop
+
+    monkeypatch.chdir(tmp_path)
+    seed = 5
+    out = Path(f"runs/paper-fig3-seed{seed}") if default else tmp_path / "run"
+    real = loop.simulate
+
+    def another_writer_meanwhile(*args, **kwargs):
+        result = real(*args, **kwargs)
+        if "progress" not in kwargs:  # the warm-up's short run
+            return result
+        assert not out.exists() or not any(out.iterdir())  # as the check before the run saw it
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "theirs.txt").write_text("another process's")
+        return result
+
+    monkeypatch.setattr(loop, "simulate", another_writer_meanwhile)
+    args = ["run", "paper-fig3", "--no-figures", "--seed", str(seed), *_sets(FAST[1:] + ["steps=2"]),
+            *([] if default else ["--out", str(out)])]
+    r = CliRunner().invoke(cli.app, args)
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    where = f"{out} (the default output folder, from the scenario's name and seed)" if default else f"--out {out}"
+    fix = "pass --out FOLDER or change the scenario's `name`" if default else "choose a new or empty folder"
+    assert r.output.strip().splitlines()[-1] == (
+        f"trackjam: error: {where}: folder is not empty and holds other files (theirs.txt), made there while this "
+        f"run ran (nothing of this run was written); {fix}")
+    assert _contents(out) == {"theirs.txt": b"another process's"}

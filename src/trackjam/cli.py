@@ -444,7 +444,7 @@ def run(
         typer.echo(f"trackjam: another run is writing into {printable(str(out))}; waiting for it to finish", err=True)
 
     try:
-        files = write_run(result, out, figures=figures, on_wait=waiting)
+        files = write_run(result, out, figures=figures, on_wait=waiting, checked=True, default=default)
     except BaseException as err:
         how = _stopped_by_signal(err)
         if how is None:

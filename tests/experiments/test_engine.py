@@ -164,8 +164,9 @@ def test_a_failing_trial_stops_the_sweep_and_keeps_the_trials_already_written(tm
 
 def test_resuming_into_a_folder_of_another_experiment_is_refused(tmp_path):
     run_experiment("constraints", workers=1, out=tmp_path, **SWEEP)
-    with pytest.raises(ConfigError, match="different experiment.*seed: 7 there, 8 now"):
+    with pytest.raises(ConfigError, match="different experiment.*seed: 7 there, 8 now") as err:
         run_experiment("constraints", workers=1, out=tmp_path, **{**SWEEP, "seed": 8})
+    assert str(err.value).startswith(f"--out {tmp_path}: holds a different experiment (")  # the option first
     with pytest.raises(ConfigError, match="different experiment"):
         run_experiment("solvers", workers=1, out=tmp_path, **SWEEP)
     # the same experiment, whose own settings have changed since the folder's trials were run
@@ -177,8 +178,10 @@ def test_resuming_into_a_folder_of_another_experiment_is_refused(tmp_path):
         run_experiment("constraints", workers=1, out=tmp_path, **SWEEP)
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
-    with pytest.raises(ConfigError, match="not empty"):
+    with pytest.raises(ConfigError, match="not empty") as err:
         run_experiment("constraints", workers=1, out=tmp_path / "other", **SWEEP)
+    assert str(err.value) == (f"--out {tmp_path / 'other'}: is not empty and holds no experiment.json; "
+                              "choose another --out")
 
 
 def test_plain_progress_prints_one_line_per_trial_with_running_means(tmp_path, capsys):

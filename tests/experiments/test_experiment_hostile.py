@@ -385,7 +385,8 @@ def test_an_experiment_json_that_is_not_a_small_file_is_one_line_without_reading
                           timeout=60, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30)))
     what = "larger than 10 MB" if kind == "huge" else "not a regular file (a folder, a device or a pipe)"
     assert proc.returncode == 2 and proc.stderr == (
-        f"trackjam: error: {meta}: {what}; restore it, or remove the whole folder to start over, or choose another --out\n")
+        f"trackjam: error: --out {out}: experiment.json is {what}; restore it, or remove the whole folder to start "
+        "over, or choose another --out\n")
     assert sorted(p.name for p in out.iterdir()) == ["experiment.json"]
 
 
@@ -452,7 +453,7 @@ def test_an_experiment_json_that_differs_hugely_is_refused_in_a_short_line(done,
         shutil.copytree(done, out)
         params = {**json.loads((out / "experiment.json").read_text()), **edit}
         (out / "experiment.json").write_text(json.dumps(params))
-        with pytest.raises(ConfigError, match=rf"^{out} holds a different experiment \(") as err:
+        with pytest.raises(ConfigError, match=rf"^--out {out}: holds a different experiment \(") as err:
             run_experiment("constraints", workers=1, out=out, **SWEEP)
         assert len(str(err.value)) < 600, len(str(err.value))
 

@@ -161,11 +161,12 @@ def test_an_unreadable_experiment_json_is_one_line_and_changes_nothing(fresh, tm
     run_experiment("constraints", workers=1, out=out, **SWEEP)
     (out / "experiment.json").write_bytes(content)
     before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    with pytest.raises(ConfigError, match="experiment.json: .*remove the whole folder to start over") as err:
+    with pytest.raises(ConfigError, match="experiment.json is .*remove the whole folder to start over") as err:
         run_experiment("constraints", workers=1, out=out, **SWEEP)
-    assert "\n" not in str(err.value)
-    with pytest.raises(ConfigError):
+    assert "\n" not in str(err.value) and str(err.value).startswith(f"--out {out}: experiment.json is ")
+    with pytest.raises(ConfigError) as err:  # no option here: the file's path begins the line
         summarise_folder(out)
+    assert str(err.value).startswith(f"{out / 'experiment.json'}: ")
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
 
 

@@ -270,7 +270,8 @@ def test_a_run_of_another_scenario_written_meanwhile_is_kept_and_said(tmp_path, 
             check(*args, **kwargs)
 
     monkeypatch.setattr(output, "check_out_dir", first_before_the_other_run)
-    with pytest.raises(ConfigError, match=r"holds another scenario's run.*written there while this run ran; nothing of"):
+    with pytest.raises(ConfigError, match=r"^--out .*: folder is not empty and holds another scenario's run, made there while this run ran "
+                       r"\(nothing of this run was written\); choose a new or empty folder$"):
         output.write_run(small_result, out, figures=False)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 

@@ -174,24 +174,26 @@ def _parameters(experiment: Experiment, trials: int, steps: int, seed: int, over
 PARAMETERS_MAX_BYTES = 10_000_000  # an experiment.json is a few hundred bytes and its --set items
 
 
-def read_parameters(meta: Path) -> dict:
+def read_parameters(meta: Path, where: str | None = None) -> dict:
     """The parameters in ``OUT/experiment.json``, or a one-line ConfigError if it is unreadable:
     not a regular file (a pipe waits for a writer forever, /dev/zero never ends), too large to
-    be ours, or not an experiment's parameters."""
+    be ours, or not an experiment's parameters. The line begins with ``where`` (``--out OUT``,
+    the option it came from) when given, else with the file's path."""
     # removing experiment.json alone leaves a folder a sweep refuses ("holds no experiment.json")
     fix = "restore it, or remove the whole folder to start over, or choose another --out"
+    head = f"{where}: {meta.name} is" if where is not None else f"{meta}:"
     if not meta.is_file():
-        raise ConfigError(f"{meta}: not a regular file (a folder, a device or a pipe); {fix}")
+        raise ConfigError(f"{head} not a regular file (a folder, a device or a pipe); {fix}")
     if meta.stat().st_size > PARAMETERS_MAX_BYTES:
-        raise ConfigError(f"{meta}: larger than {PARAMETERS_MAX_BYTES // 1_000_000} MB; {fix}")
+        raise ConfigError(f"{head} larger than {PARAMETERS_MAX_BYTES // 1_000_000} MB; {fix}")
     try:
         params = json.loads(meta.read_text())
     except (OSError, ValueError, RecursionError) as err:  # UnicodeDecodeError, JSONDecodeError, an integer
         # past 4300 digits, [[[[... nested deeper than the parser recurses
         reason = "empty" if meta.is_file() and meta.stat().st_size == 0 else type(err).__name__
-        raise ConfigError(f"{meta}: unreadable ({reason}); {fix}") from None
+        raise ConfigError(f"{head} unreadable ({reason}); {fix}") from None
     if not isinstance(params, dict) or "experiment" not in params:
-        raise ConfigError(f"{meta}: not an experiment's parameters; {fix}")
+        raise ConfigError(f"{head} not an experiment's parameters; {fix}")
     return params
 
 
@@ -202,15 +204,15 @@ def _check_out(out: Path, params: dict, figure: str) -> None:
         raise ConfigError(f"--out {out}: is {kind_of(out)}, not a folder")
     meta = out / "experiment.json"
     if meta.exists() or meta.is_symlink():
-        old = read_parameters(meta)
+        old = read_parameters(meta, f"--out {out}")
         diff = [k for k in sorted(set(old) | set(params)) if old.get(k) != params.get(k)]
         if diff:  # each value shortened: a hand-edited experiment.json may hold megabytes
             parts = _names([f"{shortened(k, 40)}: {shortened(repr(old.get(k)), 60)} there, "
                             f"{shortened(repr(params.get(k)), 60)} now" for k in diff], shown=len(params))
-            raise ConfigError(f"{out} holds a different experiment ({parts}); choose another --out")
+            raise ConfigError(f"--out {out}: holds a different experiment ({parts}); choose another --out")
         _check_trials_folder(out, f"--out {out}")
     elif out.is_dir() and any(out.iterdir()):
-        raise ConfigError(f"{out} is not empty and holds no experiment.json; choose another --out")
+        raise ConfigError(f"--out {out}: is not empty and holds no experiment.json; choose another --out")
     check_writable(existing_folder(out, f"--out {out}"), f"--out {out}")
     for written in ("summary.csv", "timing.csv", "paired.csv", figure):
         if what := taken_by(out / written):

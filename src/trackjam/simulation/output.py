@@ -62,15 +62,18 @@ LOCK_TRIES = 20  # the times a run waiting for its folder finds it removed befor
 WROTE = "trackjam_wrote"  # set on a Ctrl-C or SIGTERM that came once the run's files were all in place
 
 
-def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
+def check_out_dir(out: Path, scenario: Scenario, default: bool = False, meanwhile: bool = False) -> None:
     """Refuse an output folder that would lose or corrupt something (one-line ConfigError).
 
     ``default``: the user gave no ``--out`` and ``out`` is the one named after the scenario's
-    name and seed, which the message says (it blamed a ``--out`` nobody typed)."""
+    name and seed, which the message says (it blamed a ``--out`` nobody typed). ``meanwhile``:
+    the folder was checked before the run, so what is refused now was made there while the run
+    ran (another process writing there), which the message says."""
     out = Path(out)
     where = f"{out} (the default output folder, from the scenario's name and seed)" if default else f"--out {out}"
+    note = ", made there while this run ran (nothing of this run was written)" if meanwhile else ""
     if out.exists() and not out.is_dir():
-        raise ConfigError(f"{where}: is {kind_of(out)}, not a folder")
+        raise ConfigError(f"{where}: is {kind_of(out)}, not a folder{note}")
     if out.is_dir():
         entries = [p.name for p in out.iterdir() if not _leftover(p)]
         if entries:
@@ -84,13 +87,13 @@ def check_out_dir(out: Path, scenario: Scenario, default: bool = False) -> None:
                 what = ("another scenario's run" if previous.is_file() and not same
                         else f"other files ({shortened(', '.join(strangers), 60)})" if strangers else "other files")
                 fix = "pass --out FOLDER or change the scenario's `name`" if default else "choose a new or empty folder"
-                raise ConfigError(f"{where}: folder is not empty and holds {what}; {fix}")
+                raise ConfigError(f"{where}: folder is not empty and holds {what}{note}; {fix}")
             # an earlier run of this scenario, to be replaced: a name of ours that is not a file
             # (a folder) would fail only once the run is done and the files before it rewritten
             for name in RUN_FILES:
                 if what := taken_by(out / name):
                     fix = "pass --out FOLDER" if default else "choose another --out"
-                    raise ConfigError(f"{where}: {name} is {what}, not a file; move it away or {fix}")
+                    raise ConfigError(f"{where}: {name} is {what}, not a file{note}; move it away or {fix}")
     check_writable(out if out.is_dir() else existing_folder(out, where), where)
 
 
@@ -266,11 +269,15 @@ def _stage(result, stage: Path, out: Path, figures: bool) -> list[str]:
     return names
 
 
-def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], None] | None = None) -> list[Path]:
+def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], None] | None = None, *,
+              checked: bool = False, default: bool = False) -> list[Path]:
     """Write a :class:`~trackjam.simulation.loop.RunResult` to ``out``, whole or not at all (the
     module docstring); return the files. ``on_wait`` is called once if another run is writing
     into ``out`` and this one waits for it. A Ctrl-C or SIGTERM held back during the renames is
-    raised once they are done, marked with the attribute ``trackjam_wrote`` (:data:`WROTE`)."""
+    raised once they are done, marked with the attribute ``trackjam_wrote`` (:data:`WROTE`).
+    ``checked``: the caller checked ``out`` before the run (:func:`check_out_dir`, as `trackjam
+    run` does), so a refusal now is of what was made there since, and says so; ``default``: ``out``
+    is the default output folder (:func:`check_out_dir`)."""
     # checked before anything is written: a text result was an AttributeError, None or 5 pathlib's
     # TypeError, "" the current folder, and figures="no" drew the figures
     if not hasattr(result, "scenario") or not (hasattr(result, "steps") or hasattr(result, "tables")):
@@ -279,7 +286,7 @@ def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], Non
     if not isinstance(figures, bool):
         raise TypeError(f"write_run: figures must be True or False, got {type(figures).__name__} {figures!r:.60}")
     out = Path(out)
-    check_out_dir(out, result.scenario)
+    check_out_dir(out, result.scenario, default, meanwhile=checked)
     for _ in range(LOCK_TRIES):
         try:
             made = _make_folder(out)
@@ -287,13 +294,13 @@ def write_run(result, out: Path, figures: bool = True, on_wait: Callable[[], Non
             raise OutputError(f"--out {out}: cannot create the folder ({err.strerror or err})") from None
         with _folder_locked(out, on_wait) as held:
             if held:
-                return _write_held(result, out, figures, made)
+                return _write_held(result, out, figures, made, default)
         # the folder was removed while this run waited for it (a write that had made it failed): again
     raise OutputError(f"--out {out}: the folder was removed {LOCK_TRIES} times while this run waited to write into it")
 
 
 
-def _write_held(result, out: Path, figures: bool, made: list[Path]) -> list[Path]:
+def _write_held(result, out: Path, figures: bool, made: list[Path], default: bool = False) -> list[Path]:
     """The write of :func:`write_run`, holding the folder's lock: the folder checked again (another
     run may have written there meanwhile), the leftovers of killed writes removed (no live
     writer's staging folder is among them), the files staged and renamed into place; on any
@@ -301,10 +308,7 @@ def _write_held(result, out: Path, figures: bool, made: list[Path]) -> list[Path
     stage = None
     renamed = False
     try:
-        try:
-            check_out_dir(out, result.scenario)
-        except ConfigError as err:
-            raise ConfigError(f"{err} (written there while this run ran; nothing of this one was written)") from None
+        check_out_dir(out, result.scenario, default, meanwhile=True)
         _remove_leftovers(out)
         try:
             stage = Path(tempfile.mkdtemp(prefix=STAGING, suffix=TEMP_MARK, dir=out))
