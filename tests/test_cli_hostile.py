@@ -823,3 +823,61 @@ def test_an_error_a_sigterm_caused_is_said_as_a_sigterm(tmp_path, where):
     said = "trackjam: terminated" if where == "simulate" else f"trackjam: terminated while writing {out}; nothing was written"
     assert p.stderr.strip().splitlines() == [said]
     assert not out.exists()
+
+
+
+@pytest.mark.parametrize("where", ["run", "experiment", "import"])
+def test_a_ctrl_c_inside_code_a_library_runs_with_exec_is_exit_130_not_a_death_by_sigint(tmp_path, where):
+    """A Ctrl-C that lands in code run by exec() or eval() of a text (a dataclass's __init__, a
+    namedtuple, as a module loads) makes Python note an unhandled KeyboardInterrupt, which
+    `python -m` kept even once the command had caught it and said `trackjam: interrupted`: the
+    process then killed itself with SIGINT at its very end (status -2, not 130): 2 of 94 Ctrl-Cs
+    sent 0 to 1 s after a short sweep's last trial, while the figure's modules loaded. It is the one line
+    and status 130, whether it lands while running, while writing an experiment's results, or
+    while the command line loads."""
+    out = tmp_path / "out"
+    patch = {
+        "run": ("trackjam.simulation.loop", "simulate", ["run", "paper-fig3", "--set", "steps=1", "--no-figures"]),
+        "experiment": ("trackjam.experiments.engine", "_finish",
+                       ["experiment", "constraints", "--trials", "1", "--steps", "1", "--workers", "1"]),
+    }
+    if where == "import":  # the Ctrl-C while typer loads, under the entry point's own handler
+        setup = ("import builtins\nreal = builtins.__import__\n"
+                 "def hit(name, *a, **k):\n"
+                 "    if name == 'typer':\n"
+                 "        exec('raise KeyboardInterrupt')\n"
+                 "    return real(name, *a, **k)\n"
+                 "builtins.__import__ = hit\n")
+        argv = ["run"]
+    else:
+        module, name, argv = patch[where]
+        setup = (f"import importlib\nm = importlib.import_module({module!r})\n"
+                 "def hit(*a, **k):\n"
+                 "    exec('raise KeyboardInterrupt')\n"
+                 f"m.{name} = hit\n")
+        argv = [*argv, "--out", str(out)]
+    # run as `python -m`, as `python -m trackjam` runs: a script or -c exits past the note
+    (tmp_path / "ctrl_c_in_exec.py").write_text(
+        setup + f"import sys\nsys.argv = ['trackjam', *{argv!r}]\nfrom trackjam.console import main\nmain()\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    p = subprocess.run([sys.executable, "-m", "ctrl_c_in_exec"], capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 130, (p.returncode, p.stderr[-2000:])
+    assert p.stderr.strip().splitlines()[-1] == "trackjam: interrupted" and "Traceback" not in p.stderr
+
+
+def test_a_ctrl_c_as_a_finished_command_ends_keeps_its_status(tmp_path):
+    """A Ctrl-C while the entry point flushes the output of a command that has finished (after
+    its files are written) leaves the command's exit status, without a traceback: it was a
+    KeyboardInterrupt traceback and death by SIGINT."""
+    (tmp_path / "ctrl_c_at_the_end.py").write_text(
+        "import sys\nimport trackjam.console as console\nreal, calls = console._drain, []\n"
+        "def drain(stream):\n"
+        "    calls.append(stream)\n"
+        "    if len(calls) == 1:\n"
+        "        raise KeyboardInterrupt\n"
+        "    real(stream)\n"
+        "console._drain = drain\nsys.argv = ['trackjam', 'presets']\nconsole.main()\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    p = subprocess.run([sys.executable, "-m", "ctrl_c_at_the_end"], capture_output=True, text=True, timeout=120, env=env)
+    assert p.returncode == 0 and p.stderr == "", (p.returncode, p.stderr[-2000:])
+    assert "paper-fig3" in p.stdout

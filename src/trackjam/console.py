@@ -12,6 +12,8 @@ Python code may call too.
   status -15, with no word and sometimes a temporary file.
 - SIGHUP (a closed terminal, a dropped SSH session) is taken as SIGTERM: it had ended a run at once,
   status 129, with its staging folder left behind.
+- Once the command is over, a Ctrl-C changes nothing, and one it caught does not end the process
+  by SIGINT after all (:func:`_ending`): the exit status is the command's, 130 after a Ctrl-C.
 - A reader that stops early (`trackjam run | head -1`, `2>&1 | head`) does not end the command:
   the standard output and error write through :class:`_PipeSafe`, which points its file
   descriptor at the null device at the first broken pipe, and the command goes on to write its
@@ -110,19 +112,53 @@ def main() -> None:
     if hasattr(signal, "SIGHUP"):  # a closed terminal or a dropped SSH session: ended as by SIGTERM, cleaned up
         signal.signal(signal.SIGHUP, _terminated)
     try:
-        import trackjam.cli as cli
-    except KeyboardInterrupt:
-        sys.stderr.write("trackjam: interrupted\n")
-        sys.exit(130)
-    try:
-        cli.app(prog_name="trackjam")
-    except SystemExit as err:
-        if err.code == TERMINATED and not cli._said_terminated:
-            sys.stderr.write("trackjam: terminated\n")
-        raise
-    finally:
+        try:
+            import trackjam.cli as cli
+        except KeyboardInterrupt:
+            sys.stderr.write("trackjam: interrupted\n")
+            sys.exit(130)
+        try:
+            cli.app(prog_name="trackjam")
+        except SystemExit as err:
+            if err.code == TERMINATED and not cli._said_terminated:
+                sys.stderr.write("trackjam: terminated\n")
+            raise
+        finally:
+            _drain(sys.stdout)
+            _drain(sys.stderr)
+    except KeyboardInterrupt as err:
+        # a Ctrl-C in the instants the command's end took to flush its output: the command's own
+        # status if it had ended (the SystemExit the Ctrl-C interrupted), else the one line and 130
+        ended = err.__context__
+        if not isinstance(ended, SystemExit):
+            sys.stderr.write("trackjam: interrupted\n")
+            ended = SystemExit(130)
         _drain(sys.stdout)
         _drain(sys.stderr)
+        raise ended from None
+    finally:
+        _ending()
+
+
+def _ending() -> None:
+    """The command is over, its status set: a Ctrl-C from now on changes nothing.
+
+    - Python notes a KeyboardInterrupt that left code run by ``exec`` or ``eval`` of a text (a
+      dataclass's ``__init__``, a namedtuple, made as a module loads) as unhandled, even once it
+      was caught, and under ``python -m`` ends the process with SIGINT for it, whatever the exit
+      status: a Ctrl-C that landed there, said `trackjam: interrupted`, killed the process by
+      SIGINT (status -2, not 130; 2 of 94 Ctrl-Cs sent 0 to 1 s after a short sweep's last trial,
+      while its figure's modules loaded). The note is cleared by the next such ``exec``: one of
+      nothing.
+    - SIGINT is ignored from here on (:func:`main` is the program's entry point, not a function to
+      call and go on): Python puts back its default action, death by SIGINT, as it shuts down, so a
+      Ctrl-C then would end a command that had finished, its files written, by SIGINT.
+    """
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except (ValueError, OSError):  # not the main thread (main() called from a thread): no handler of ours
+        pass
+    exec("")  # clears the note of a KeyboardInterrupt caught since it was made (see above)
 
 
 def _drain(stream) -> None:
