@@ -881,3 +881,36 @@ def test_a_ctrl_c_as_a_finished_command_ends_keeps_its_status(tmp_path):
     p = subprocess.run([sys.executable, "-m", "ctrl_c_at_the_end"], capture_output=True, text=True, timeout=120, env=env)
     assert p.returncode == 0 and p.stderr == "", (p.returncode, p.stderr[-2000:])
     assert "paper-fig3" in p.stdout
+
+
+def test_a_ctrl_c_a_compiled_module_swallowed_is_said_as_a_ctrl_c(tmp_path):
+    """A Ctrl-C whose KeyboardInterrupt a compiled module swallowed, failing in its own words
+    instead (matplotlib's `affine_transform` as a sweep drew its figure: "TypeError: incompatible
+    function arguments", a traceback and exit status 1), is the Ctrl-C's one line and status 130;
+    without a Ctrl-C the same error is a traceback, as before."""
+    hit = ("import os, signal, time, importlib\n"
+           "m = importlib.import_module('trackjam.experiments.engine')\n"
+           "def swallowed(*a, **k):\n"
+           "    try:\n"
+           "        if CTRL_C:\n"
+           "            os.kill(os.getpid(), signal.SIGINT)\n"
+           "            time.sleep(5)\n"
+           "    except KeyboardInterrupt:\n"
+           "        pass\n"
+           "    raise TypeError('affine_transform(): incompatible function arguments')\n"
+           "m._finish = swallowed\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    for ctrl_c in (True, False):
+        out = tmp_path / f"out{ctrl_c}"
+        argv = ["experiment", "constraints", "--trials", "1", "--steps", "1", "--workers", "1", "--out", str(out)]
+        (tmp_path / "swallowed_ctrl_c.py").write_text(
+            f"CTRL_C = {ctrl_c}\n" + hit +
+            f"import sys\nsys.argv = ['trackjam', *{argv!r}]\nfrom trackjam.console import main\nmain()\n")
+        p = subprocess.run([sys.executable, "-m", "swallowed_ctrl_c"], capture_output=True, text=True, timeout=300,
+                           env=env)
+        if ctrl_c:
+            assert p.returncode == 130, (p.returncode, p.stderr[-2000:])
+            assert p.stderr.strip().splitlines()[-1] == "trackjam: interrupted" and "Traceback" not in p.stderr
+        else:
+            assert p.returncode == 1 and "incompatible function arguments" in p.stderr, p.stderr[-2000:]
+        assert (out / "trials" / "c01-t0000.parquet").is_file()  # the trials written stay

@@ -156,7 +156,7 @@ def user_errors(fn: Callable) -> Callable:
             ended = _cause(err, SystemExit)  # a SIGTERM whose handler ran inside a callback of compiled code
             if isinstance(err, SystemError) and ended is not None:
                 raise SystemExit(ended.code) from None
-            if not interrupted(err):  # a SystemError that no Ctrl-C caused
+            if not interrupted(err) and not _ctrl_c_came():  # a SystemError that no Ctrl-C caused
                 raise
             _say_interrupted(err)
         except Exception as err:
@@ -165,13 +165,21 @@ def user_errors(fn: Callable) -> Callable:
             # (typer's Exit of a Ctrl-C already said is no such error)
             if isinstance(err, (typer.Exit, typer.Abort)):
                 raise
-            if interrupted(err):
+            if interrupted(err) or _ctrl_c_came():  # the latter: a KeyboardInterrupt a compiled module swallowed
                 _say_interrupted(err)
             if _terminated_by(err) is None:
                 raise
             _say_terminated(err, "trackjam: terminated")
 
     return wrapper
+
+
+def _ctrl_c_came() -> bool:
+    """Whether a Ctrl-C reached this process under the entry point (:data:`trackjam.console.ctrl_c_came`):
+    an error after it is the Ctrl-C's, even when a compiled module swallowed its KeyboardInterrupt
+    and failed in its own words (matplotlib: "incompatible function arguments")."""
+    console = sys.modules.get("trackjam.console")
+    return bool(getattr(console, "ctrl_c_came", False))
 
 
 def _say_interrupted(err: BaseException) -> None:

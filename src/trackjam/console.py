@@ -105,10 +105,24 @@ def _terminated(signum, frame) -> None:
     raise SystemExit(TERMINATED)
 
 
+ctrl_c_came = False  # a Ctrl-C reached this process (set by _ctrl_c, read by trackjam.cli.user_errors)
+
+
+def _ctrl_c(signum, frame) -> None:
+    """Python's own Ctrl-C handler (a KeyboardInterrupt), noting first that one came: a compiled
+    module may swallow the KeyboardInterrupt and fail in its own words instead (matplotlib's
+    `affine_transform` said "incompatible function arguments", a traceback and exit status 1,
+    when a Ctrl-C landed in it as a sweep drew its figure), and the command then says the Ctrl-C."""
+    global ctrl_c_came
+    ctrl_c_came = True
+    signal.default_int_handler(signum, frame)
+
+
 def main() -> None:
     sys.stdout = _pipe_safe(_reopened(1, sys.stdout))
     sys.stderr = _pipe_safe(_reopened(2, sys.stderr))
     signal.signal(signal.SIGTERM, _terminated)
+    signal.signal(signal.SIGINT, _ctrl_c)
     if hasattr(signal, "SIGHUP"):  # a closed terminal or a dropped SSH session: ended as by SIGTERM, cleaned up
         signal.signal(signal.SIGHUP, _terminated)
     try:
