@@ -106,6 +106,11 @@ PARTLY_HELD = {
     # the "with" side is swarm/'s own trials; the "without" side and the differences are not committed
     "| cell | engine | held | held >= 50 % | held while airborne | OSPA [m] |",
 }
+HELD_WHOLE = {
+    # the comms faults' table: docs/swarm_comms.py's own lines from experiments/swarm-comms/runs.csv
+    # (test_the_comms_faults_table_is_what_its_script_prints_from_its_csv)
+    "| fault (seeds 1-",
+}
 LEFT_OUT = {
     "| `swarm-3` with | held a | held b | held c | all |",  # seeds 1-20 of `trackjam run`, not committed
     "| `swarm-3` | held a | held b | held c | mean |",  # the velocity cue, seeds 1-100, not committed
@@ -130,7 +135,7 @@ def test_every_table_of_the_pages_is_held_or_left_out_by_name():
         starts = [offsets[i] for i, line in enumerate(lines)
                   if line.startswith("|") and not (i and lines[i - 1].startswith("|"))]
         held = {_table_start(t) for t in TABLES if t.page == page}
-        named = PARTLY_HELD | LEFT_OUT
+        named = PARTLY_HELD | HELD_WHOLE | LEFT_OUT
         unclaimed = [text[s:].split("\n", 1)[0] for s in starts
                      if s not in held and not any(text[s:].startswith(h) for h in named)]
         assert not unclaimed, f"{page}: tables neither held nor left out: {unclaimed}"
@@ -379,3 +384,52 @@ def test_the_median_downing_step_is_3_in_every_k3_cell_as_the_trial_files_say():
                  if d is not None and not math.isnan(d)]
         median = statistics.median(steps)
         assert median == 3, f"{ST}, {wording!r}: docs/experiments/swarm/trials/ config {config}: median {median:g}"
+
+
+def _seed_rows() -> list[dict]:
+    with open(DOCS / "experiments" / "swarm-seeds" / "seeds.csv", newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def test_swarm3_over_seeds_1_to_400_is_its_csv_wherever_the_pages_quote_it():
+    # README, several-targets.md and swarm.md quote docs/swarm_seeds.py's run of seeds 1-400
+    from scipy import stats
+
+    rows = _seed_rows()
+    assert [int(r["seed"]) for r in rows] == list(range(1, 401))
+    quoted = []
+    for k in "abc":
+        x = [100 * r[f"held_{k}"] for r in rows]
+        half = stats.t.ppf(0.975, len(x) - 1) * statistics.stdev(x) / math.sqrt(len(x))
+        quoted.append(f"{statistics.fmean(x):.1f} ± {half:.1f} %")
+    both = sum(all(r[f"held_{k}"] >= 0.5 for k in "abc") for r in rows)
+    ceiling = sum(all(r[f"ceiling_{k}"] >= 0.5 for k in "abc") for r in rows)
+    capped = sum(r["capped_steps"] > 0 for r in rows)
+    flat = {name: " ".join(text.split()) for name, text in
+            (("README", (ROOT / "README.md").read_text()), ("several-targets", (DOCS / "several-targets.md").read_text()),
+             ("swarm", (DOCS / "swarm.md").read_text()))}
+    line = f"a on {quoted[0]}, b on {quoted[1]} and c on {quoted[2]}"
+    for name, text in flat.items():
+        assert line in text, (name, line)
+    assert f"in {both} of the 400 seeds, where a clairvoyant team reaches that in {ceiling}" in flat["README"]
+    assert f"in {both} of the 400 seeds, and even a clairvoyant team reaches that in only {ceiling}" in flat["several-targets"]
+    counts = [sum(r[f"held_{k}"] >= 0.5 for r in rows) for k in "abc"]
+    assert (f"a is held on at least half its steps in {counts[0]} of the 400 seeds, b in {counts[1]} and c in "
+            f"{counts[2]}, and all three in {both}") in flat["swarm"]
+    assert f"stops a search on some step in {capped} of the 400 seeds" in flat["swarm"]
+    for k, mean in zip("abc", ("78.5", "85.2", "82.4")):  # the ceiling on the same truths
+        assert f"{100 * statistics.fmean(r[f'ceiling_{k}'] for r in rows):.1f}" == mean
+
+
+def test_the_comms_faults_table_is_what_its_script_prints_from_its_csv():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("swarm_comms", DOCS / "swarm_comms.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    runs = mod.read_runs()
+    assert all(len(x) == 20 for x in runs.values())
+    page = (DOCS / "several-targets.md").read_text().split("\n")
+    lines = mod.table(runs)
+    start = page.index(lines[0])
+    assert page[start : start + len(lines)] == lines
