@@ -241,10 +241,10 @@ def test_a_run_with_several_targets_runs_on_the_swarm_engine_and_writes_its_logs
          "measurements.parquet"])
     assert json.loads((out / "summary.json").read_text())["ids"] == ["a", "b"]
     bad = tmp_path / "bad"
-    r = subprocess.run([sys.executable, "-m", "trackjam", "run", str(f), "--out", str(bad), "--set", "comms.loss=0.1"],
-                       capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "trackjam", "run", str(f), "--out", str(bad), "--set",
+                        "fusion.existence=evidence"], capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert r.stderr.startswith("trackjam: error: --set comms.loss=0.1: comms.loss:")
+    assert r.stderr.startswith("trackjam: error: --set fusion.existence=evidence: fusion.existence:")
     assert not bad.exists()
 
 

@@ -97,7 +97,8 @@ def test_the_cli_refuses_a_million_workers_in_one_line(tmp_path):
     assert not (tmp_path / "e").exists()
 
 
-@pytest.mark.parametrize("item, key", [("comms.loss=0.3", "comms.loss"), ("comms.delay_steps=1", "comms.delay_steps"),
+@pytest.mark.parametrize("item, key", [("fusion.existence=evidence", "fusion.existence"),
+                                       ("control.close_in=0.1", "control.close_in"),
                                        ("control.plan_over=belief", "control.plan_over")])
 def test_an_option_the_swarm_engine_does_not_read_is_refused_before_out_is_claimed(tmp_path, item, key):
     # before: experiment.json and trials/ were written, then every trial failed in its worker
