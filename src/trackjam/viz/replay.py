@@ -151,7 +151,6 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
     estimate is drawn in its step's track-quality colour (the run figure's band (i)), so a false
     track does not look held."""
     k = shown[f]
-    N = u.shape[1]
     path = shown[max(f + 1 - TRAIL_FRAMES, 0): f + 1]
     data = [
         _trail(truth[path], "target trail", TRUTH_COLOUR, 4, showlegend=False),
@@ -160,6 +159,18 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
         _point(est[k], "reported estimate (colour: track quality)", to_hex(QUALITY_COLOURS[quality[k]]),
                "circle-open", 7),
     ]
+    return data + team_traces(f, shown, u, u_path, point, idx, power, jammed, R, ant, labels, delta, box)
+
+
+def team_traces(f, shown, u, u_path, point, idx, power, jammed, R, ant, labels, delta, box,
+                hover_extra=None) -> list[Trace]:
+    """The team's traces of frame ``f`` (step index ``shown[f]``), the same in every replay: each
+    agent's trail, marker (its level) and cone, the jammed agents' red rings and the jamming
+    links. ``hover_extra(k, j)``, when given, adds a line to agent j's hover text at step k."""
+    k = shown[f]
+    N = u.shape[1]
+    path = shown[max(f + 1 - TRAIL_FRAMES, 0): f + 1]
+    data = []
     # u_path row 0 is the start, row k + 1 is step k
     agent_path = np.concatenate([[0], path + 1]) if path[0] == 0 else path + 1
     for j in range(N):
@@ -170,7 +181,8 @@ def _frame_data(f, shown, steps, truth, est, u, u_path, point, idx, power, jamme
         data.append(_point(u[k, j], f"agent {j + 1}", agent_colour(j), "circle", 6, text=[label],
                            legendgroup=f"agent{j}",
                            hovertext=[f"agent {j + 1}<br>level {labels[int(idx[k, j])]}"
-                                      f"<br>interference {_db(R[f, j].sum())}"],
+                                      f"<br>interference {_db(R[f, j].sum())}"
+                                      + (f"<br>{hover_extra(k, j)}" if hover_extra else "")],
                            hoverinfo="text"))
     for j in range(N):
         data.append(_cone_trace(j, u[k, j], point[k, j], power[k, j] > 0, ant, *box))
@@ -206,6 +218,21 @@ def _title(steps: Columns, k: int, quality: np.ndarray | None = None) -> str:
     return title
 
 
+def team_arrays(agents: Columns, fs: FigureSettings, T: int, N: int, shown: np.ndarray) -> tuple:
+    """What :func:`team_traces` draws, from a run's agents log: positions u (T, N, 3), the paths
+    with the start as row 0 (T + 1, N, 3), the aims (T, N, 3), level indices, transmit powers,
+    jammed (T, N), the interference R of the shown steps (row f is step ``shown[f]``) and the
+    level labels."""
+    u = agent_positions(agents, T, N)
+    u_path = np.concatenate([agent_positions(agents, T, N, "prev_")[:1], u], axis=0)
+    point = agent_positions(agents, T, N, "point_")
+    idx = agent_table(agents, "level_index", T, N)
+    power = np.nan_to_num(agent_table(agents, "power_w", T, N))
+    jammed = agent_table(agents, "jammed", T, N) > 0.5
+    R = interference_per_step(agents, fs, shown)  # row f is step shown[f]
+    return u, u_path, point, idx, power, jammed, R, level_labels(fs)
+
+
 def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frames: int = MAX_FRAMES) -> dict:
     """The plotly figure of the replay, as plain data (``data``, ``layout``, ``frames``): one
     frame per shown step, slider and play/pause buttons."""
@@ -214,14 +241,7 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
     truth = steps_xyz(steps, "truth_")
     est = steps_xyz(steps, "est_")
     ant = fs.antenna
-    u = agent_positions(agents, T, N)
-    u_path = np.concatenate([agent_positions(agents, T, N, "prev_")[:1], u], axis=0)
-    point = agent_positions(agents, T, N, "point_")
-    idx = agent_table(agents, "level_index", T, N)
-    power = np.nan_to_num(agent_table(agents, "power_w", T, N))
-    jammed = agent_table(agents, "jammed", T, N) > 0.5
-    R = interference_per_step(agents, fs, shown)  # row f is step shown[f]
-    labels = level_labels(fs)
+    u, u_path, point, idx, power, jammed, R, labels = team_arrays(agents, fs, T, N, shown)
     quality = np.asarray(CLASSES)[step_classes(steps, fs.gate)]
 
     box = drawable_box(fs.low, fs.high)  # the cones are cut at the area's walls
@@ -235,6 +255,17 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
         )
         for f, k in enumerate(shown)
     ]
+    note = (f"{fs.name}: {counted(N, 'agent')}, {counted(T, 'step')}"
+            + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
+            + f", solver {fs.solver}; "
+            f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
+            f"delta = {fs.interference_limit_db:g} dBW")
+    return dict(data=frames[0]["data"], layout=replay_layout(frames, fs, note), frames=frames)
+
+
+def replay_layout(frames: list[dict], fs: FigureSettings, note: str) -> dict:
+    """The layout every replay shares: the area as the scene's axes, the first frame's title,
+    play/pause buttons, the time slider over ``frames`` and ``note`` at the top right."""
     lo, hi = fs.low, fs.high
     span = hi - lo
     ratio = span / span.max()
@@ -274,11 +305,7 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
             steps=slider_steps,
         )],
         annotations=[dict(
-            text=(f"{fs.name}: {counted(N, 'agent')}, {counted(T, 'step')}"
-                  + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
-                  + f", solver {fs.solver}; "
-                  f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
-                  f"delta = {fs.interference_limit_db:g} dBW"),
+            text=note,
             x=0.97, y=0.99, xref="paper", yref="paper", xanchor="right", showarrow=False,
             font=dict(size=11, color="#555"),
         )],
@@ -286,15 +313,20 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
     import plotly.io as pio
 
     layout["template"] = pio.templates[pio.templates.default].to_plotly_json()  # the look plotly's own figures get
-    return dict(data=frames[0]["data"], layout=layout, frames=frames)
+    return layout
 
 
 def write_replay(steps: Columns, agents: Columns, fs: FigureSettings, path: str | Path) -> Path:
     """Write the replay of one run as a self-contained HTML file at ``path``; returns the path."""
     path = Path(path)
+    return write_page(replay_figure(steps, agents, fs), f"trackjam replay: {fs.name} (solver {fs.solver})", path)
+
+
+def write_page(fig: dict, title: str, path: Path) -> Path:
+    """Write the replay figure ``fig`` as a self-contained HTML page (plotly.js inlined) at
+    ``path``, its tab named ``title``; returns the path."""
     import plotly.io as pio
 
-    fig = replay_figure(steps, agents, fs)
     # validate=False: the traces are plain data, built to plotly's schema (the browser test loads them)
     html = pio.to_html(fig, validate=False, include_plotlyjs=True, include_mathjax=False, full_html=True,
                        auto_play=False, config=dict(displaylogo=False, responsive=True),
@@ -303,7 +335,7 @@ def write_replay(steps: Columns, agents: Columns, fs: FigureSettings, path: str 
     # <title>, so every replay's tab and bookmark read "replay.html")
     import html as markup
 
-    title = markup.escape(f"trackjam replay: {fs.name} (solver {fs.solver})")
+    title = markup.escape(title)
     html = html.replace("<head>", f"<head><title>{title}</title>"
                         "<style>html, body {margin: 0; height: 100%; overflow: hidden}</style>", 1)
     path.write_text(html, encoding="utf-8")
