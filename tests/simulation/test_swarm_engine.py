@@ -184,15 +184,20 @@ def test_the_docs_document_exactly_each_swarm_log(table):
     assert first_column_names(f"Several targets: `{table}.parquet`", SEVERAL_TARGETS) == {c.name for c in SWARM_TABLES[table]}
 
 
-def test_write_run_writes_the_swarm_logs_and_its_figure(run, tmp_path):
+def test_write_run_writes_the_swarm_logs_its_figure_and_its_replay(run, tmp_path):
     import pyarrow.parquet as pq
 
     from trackjam.simulation.output import write_run
 
     files = write_run(run, tmp_path / "out")
     assert sorted(p.name for p in files) == sorted(
-        ["scenario.yaml", "summary.json", "run.png", *(f"{name}.parquet" for name in SWARM_TABLES)])
+        ["scenario.yaml", "summary.json", "run.png", "replay.html", *(f"{name}.parquet" for name in SWARM_TABLES)])
     assert (tmp_path / "out" / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = (tmp_path / "out" / "replay.html").read_text()
+    assert page.startswith("<!doctype html>") and "<title>trackjam replay: " in page and 'id="trackjam-replay"' in page
+    assert '"name":"target a"' in page and '"name":"target b"' in page
+    logs_only = write_run(run, tmp_path / "logs", figures=False)
+    assert not {"run.png", "replay.html"} & {p.name for p in logs_only}
     back = pq.read_table(tmp_path / "out" / "targets.parquet").to_pydict()
     assert back["target"] == list(run.tables["targets"]["target"])
     write_run(run, tmp_path / "out")  # the same run again into its own folder: allowed

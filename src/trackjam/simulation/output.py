@@ -256,8 +256,11 @@ def _stage(result, stage: Path, out: Path, figures: bool) -> list[str]:
         put(f"{name}.parquet", lambda p, columns=columns: write_parquet(columns, p))
     if figures and "tracks" in tables:
         from trackjam.viz.swarm import plot_swarm
+        from trackjam.viz.swarm_replay import write_swarm_replay
 
-        put("run.png", lambda p: plot_swarm(tables, figure_settings(result.scenario), p))
+        fs = figure_settings(result.scenario)
+        put("run.png", lambda p: plot_swarm(tables, fs, p))
+        put("replay.html", lambda p: write_swarm_replay(tables, fs, p))
     elif figures:
         from trackjam.viz.figure import plot_run
         from trackjam.viz.replay import write_replay
