@@ -67,9 +67,17 @@ def test_a_render_size_that_is_not_one_is_named_at_construction(make, bad):
         make(render_mode="rgb_array", render_size=bad)
 
 
-@pytest.mark.parametrize("make, mode", [(one_env, None), (one_env, "replay"), (two_env, None)],
-                         ids=["one-target-none", "one-target-replay", "two-targets-none"])
+@pytest.mark.parametrize("make, mode", [(one_env, None), (one_env, "replay"), (two_env, None), (two_env, "replay")],
+                         ids=["one-target-none", "one-target-replay", "two-targets-none", "two-targets-replay"])
 def test_a_render_size_without_rgb_array_is_refused(make, mode, tmp_path):
-    # (the several-target environment refuses the replay mode itself)
     with pytest.raises(ValueError, match=rf"^render_size: \(64, 48\) given with render_mode={mode!r}"):
         make(render_mode=mode, render_size=(64, 48), replay_path=str(tmp_path / "r.html"))
+
+
+@MAKERS
+def test_render_replay_writes_the_page_and_returns_its_path(make, tmp_path):
+    path = tmp_path / "replay.html"
+    env = stepped(make(render_mode="replay", replay_path=str(path)))
+    assert env.render() == path
+    page = path.read_text()
+    assert "<title>trackjam replay: " in page and page.count("Plotly.newPlot") == 1

@@ -336,9 +336,28 @@ def test_the_global_state_is_the_team_and_every_true_target():
     state_test(parallel_to_aec(two_env()), two_env())
 
 
-def test_render_draws_the_swarm_figure_and_the_replay_is_refused(monkeypatch):
-    with pytest.raises(ValueError, match=r"^render_mode: 'replay' is not available with several targets"):
-        two_env(render_mode="replay")
+def test_render_replay_writes_the_several_target_replay(tmp_path):
+    # render_mode="replay" had been refused at construction: the swarm engine wrote no replay
+    path = tmp_path / "episode.html"
+    env = two_env("steps=3", render_mode="replay", replay_path=str(path))
+    env.reset(seed=1)
+    with pytest.raises(RuntimeError, match="before the first step"):
+        env.render()
+    env.step({a: np.array([0, 3, 1]) for a in env.agents})
+    assert env.render() == path and path.is_file()
+    page = path.read_text()
+    assert page.count('"name":"target a"') == 2 and page.count('"name":"target b"') == 2  # the data, one frame
+    env.step({a: np.array([1, 2, 1]) for a in env.agents})
+    env.render()
+    page = path.read_text()
+    assert page.count('"name":"target a"') == 3  # rewritten: now two frames
+    assert "(solver external)" in page[: page.index("</title>")]
+    assert [p.name for p in tmp_path.iterdir()] == ["episode.html"]  # written in place, no leftover
+    with pytest.raises(ValueError, match=r"^replay_path: .* is a folder"):
+        two_env(render_mode="replay", replay_path=str(tmp_path))
+
+
+def test_render_draws_the_swarm_figure(monkeypatch):
     env = two_env("steps=2", render_mode="rgb_array")
     env.reset(seed=1)
     with pytest.raises(RuntimeError, match="before the first step"):

@@ -60,7 +60,7 @@ class SwarmParallelEnv(TrackjamParallelEnv):
     """The team against several targets; ``track_slots`` (M) is how many of its view's confirmed
     tracks an agent observes and may serve (default, or None: as many as the engine plans at, 4)."""
 
-    metadata = {"name": "trackjam_swarm_v0", "render_modes": ["rgb_array"], "render_fps": 1}
+    metadata = {"name": "trackjam_swarm_v0", "render_modes": ["rgb_array", "replay"], "render_fps": 1}
     ACTION_WORDS = "[move, level, track slot]"
 
     def __init__(self, scenario: Scenario, jam_penalty: float = 1.0, render_mode: str | None = None,
@@ -78,10 +78,6 @@ class SwarmParallelEnv(TrackjamParallelEnv):
         if len(scenario.target_list) < 2:
             raise ConfigError("SwarmParallelEnv runs the swarm engine, for several targets; this scenario has one: "
                               "trackjam.env.parallel_env(scenario) gives the one-target environment")
-
-    def _check_replay(self, path) -> None:
-        raise ValueError("render_mode: 'replay' is not available with several targets (the swarm engine writes "
-                         "no replay); take 'rgb_array', the run's figure")
 
     def _engine(self, scenario: Scenario) -> SwarmSimulation:
         return SwarmSimulation(scenario)
@@ -271,13 +267,20 @@ class SwarmParallelEnv(TrackjamParallelEnv):
 
     def render(self):
         """``rgb_array``: the run's figure of the episode so far (the several-target run.png) as
-        an (H, W, 3) uint8 array (fitted to ``render_size`` when one was given)."""
+        an (H, W, 3) uint8 array (fitted to ``render_size`` when one was given); ``replay``:
+        writes the several-target interactive replay of the episode so far to ``replay_path``
+        and returns that path."""
         if not self._ready_to_render():
             return None
-        from trackjam.viz.swarm import plot_swarm
-
         res = self.sim.result()
         settings = replace(figure_settings(res.scenario), solver=self._acted(res.steps["mode"]))
+        if self.render_mode == "replay":
+            from trackjam.files import atomic_write
+            from trackjam.viz.swarm_replay import write_swarm_replay
+
+            return atomic_write(self.replay_path, lambda p: write_swarm_replay(res.tables, settings, p))
+        from trackjam.viz.swarm import plot_swarm
+
         return self._frame(figure_pixels(lambda p: plot_swarm(res.tables, settings, p)))
 
     def _acted(self, modes) -> str:
