@@ -88,6 +88,7 @@ def test_one_trace_group_per_target_and_the_tracks(run):
         for k, name in enumerate("ab"):
             assert by[f"target {name} trail"]["legendgroup"] == by[f"target {name}"]["legendgroup"] == f"target{k}"
             assert by[f"target {name} trail"]["line"]["color"] == by[f"target {name}"]["marker"]["color"] == colours[k]
+            assert by[f"target {name}"]["marker"]["line"]["color"] == "black"  # apart from an agent of that colour
         t = int(frame["name"])
         rows = tr["t"] == t
         tracks = by[TRACKS_NAME]

@@ -4,12 +4,12 @@ frames, trails through the last ``TRAIL_FRAMES`` shown steps, time slider and pl
 from the swarm logs.
 
 Each frame shows every true target with its trail in its own colour (the run figure's, named in
-the legend; a diamond while it flies, a cross once its jamming fail-safe has started: downed;
-nothing while it is absent), every reported track as a labelled ring in the colour of the target
-it holds that step (grey while it holds none: a false track), and the team as the one-target
-replay draws it (:func:`trackjam.viz.replay.team_traces`): each agent's trail, its level, its
-cone toward the point its antenna aimed at (``point_x/y/z`` of the agents log) cut at the area's
-walls, the jammed agents' red rings and the jamming links.
+the legend, outlined in black; a diamond while it flies, a cross once its jamming fail-safe has
+started: downed; nothing while it is absent), every reported track as a labelled ring in the
+colour of the target it holds that step (grey while it holds none: a false track), and the team
+as the one-target replay draws it (:func:`trackjam.viz.replay.team_traces`): each agent's trail,
+its level, its cone toward the point its antenna aimed at (``point_x/y/z`` of the agents log)
+cut at the area's walls, the jammed agents' red rings and the jamming links.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from trackjam.viz.replay import (
 from trackjam.viz.settings import FigureSettings
 from trackjam.viz.swarm import NONE_COLOUR, target_colours
 
+TARGET_OUTLINE = "black"
 TRACKS_NAME = "reported tracks (colour: the target held; grey: false)"
 
 
@@ -78,12 +79,15 @@ def _target_traces(f, shown, k_id, name, colour, truth, downed, exists) -> list[
     path = shown[max(f + 1 - TRAIL_FRAMES, 0): f + 1]
     here = truth[k, k_id] if exists[k, k_id] else np.full(3, np.nan)
     state = "downed (fail-safe)" if downed[k, k_id] else "flying"
+    marker = _point(here, f"target {name}", colour, "x" if downed[k, k_id] else "diamond", 8,
+                    text=[f"{name}{' (downed)' if downed[k, k_id] else ''}"], legendgroup=f"target{k_id}",
+                    hovertext=[f"target {name}<br>{state}"], hoverinfo="text")
+    # outlined in black: the agents' colours are the same palette's
+    marker["marker"]["line"] = dict(color=TARGET_OUTLINE, width=2)
     return [
         _trail(truth[path, k_id], f"target {name} trail", colour, 4, legendgroup=f"target{k_id}",
                showlegend=False),
-        _point(here, f"target {name}", colour, "x" if downed[k, k_id] else "diamond", 6,
-               text=[f"{name}{' (downed)' if downed[k, k_id] else ''}"], legendgroup=f"target{k_id}",
-               hovertext=[f"target {name}<br>{state}"], hoverinfo="text"),
+        marker,
     ]
 
 
