@@ -78,7 +78,7 @@ from trackjam.simulation.build import SwarmComponents, build_swarm
 from trackjam.simulation.engine import Stepping, located
 from trackjam.simulation.swarm_logs import SwarmLog, swarm_summary
 from trackjam.simulation.swarm_search import Aim, SearchMemory, plan_point
-from trackjam.simulation.team import Exchange
+from trackjam.simulation.team import Exchange, latest_by_sender
 from trackjam.world.motion import cv_coast
 from trackjam.world.swarm import TruthSwarm
 
@@ -184,13 +184,8 @@ def coasted_tracks(late: list[Message], t: int, accel_var: float) -> list[Messag
     :func:`~trackjam.simulation.team.coasted_posteriors`): of the late posteriors that arrived,
     each sender's latest only, every track's mean and covariance predicted by Eq. (1) from its
     step to ``t`` (existence, visibility and label as sent)."""
-    latest: dict[int, Message] = {}
-    for m in late:
-        if m.sender not in latest or latest[m.sender].stamp < m.stamp:
-            latest[m.sender] = m
     out = []
-    for sender in sorted(latest):
-        m = latest[sender]
+    for m in latest_by_sender(late):
         tracks = [replace(e, mean=mean, cov=cov) for e in m.tracks
                   for mean, cov in [cv_coast(e.mean, e.cov, accel_var, t - m.stamp)]]
         out.append(replace(m, tracks=tracks))

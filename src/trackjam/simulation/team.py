@@ -359,17 +359,21 @@ class Team:
         return report
 
 
-def coasted_posteriors(late: list[Message], t: int, accel_var: float) -> list[Message]:
-    """``comms.stale: coast`` (ours): of the late posteriors that arrived, each sender's latest
-    only, its estimate predicted by Eq. (1) from its step to ``t`` (existence, and the predicted
-    existence it started from, as sent)."""
+def latest_by_sender(late: list[Message]) -> list[Message]:
+    """Of the late messages that arrived, each sender's latest, in sender order."""
     latest: dict[int, Message] = {}
     for m in late:
         if m.sender not in latest or latest[m.sender].stamp < m.stamp:
             latest[m.sender] = m
+    return [latest[sender] for sender in sorted(latest)]
+
+
+def coasted_posteriors(late: list[Message], t: int, accel_var: float) -> list[Message]:
+    """``comms.stale: coast`` (ours): of the late posteriors that arrived, each sender's latest
+    only, its estimate predicted by Eq. (1) from its step to ``t`` (existence, and the predicted
+    existence it started from, as sent)."""
     out = []
-    for sender in sorted(latest):
-        m = latest[sender]
+    for m in latest_by_sender(late):
         est = m.estimate
         if est.mean is not None:
             mean, cov = cv_coast(est.mean, est.cov, accel_var, t - m.stamp)

@@ -255,12 +255,18 @@ def replay_figure(steps: Columns, agents: Columns, fs: FigureSettings, max_frame
         )
         for f, k in enumerate(shown)
     ]
-    note = (f"{fs.name}: {counted(N, 'agent')}, {counted(T, 'step')}"
-            + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
+    note = replay_note(fs, fs.name, counted(N, "agent"), T, len(shown), ant)
+    return dict(data=frames[0]["data"], layout=replay_layout(frames, fs, note), frames=frames)
+
+
+def replay_note(fs: FigureSettings, name: str, who: str, T: int, n_shown: int, ant: AntennaModel) -> str:
+    """The page's note under the plot: the run (``who``: its counts of agents, and targets), its
+    steps and how often a frame is shown, the solver, the cones and delta."""
+    return (f"{name}: {who}, {counted(T, 'step')}"
+            + (f" (a frame every {T / n_shown:.2g} steps)" if n_shown < T else "")
             + f", solver {fs.solver}; "
             f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
             f"delta = {fs.interference_limit_db:g} dBW")
-    return dict(data=frames[0]["data"], layout=replay_layout(frames, fs, note), frames=frames)
 
 
 def replay_layout(frames: list[dict], fs: FigureSettings, note: str) -> dict:

@@ -29,6 +29,7 @@ from trackjam.viz.replay import (
     _trail,
     drawable_box,
     replay_layout,
+    replay_note,
     shown_steps,
     team_arrays,
     team_traces,
@@ -158,11 +159,7 @@ def swarm_replay_figure(tables: dict, fs: FigureSettings, max_frames: int = MAX_
                             hover_extra=served)
         frames.append(dict(name=str(int(steps["t"][k])), data=data,
                            layout=dict(title=dict(text=_title(steps, held, tracks_held, k) + every))))
-    note = (f"{_text(fs.name)}: {counted(K, 'target')}, {counted(N, 'agent')}, {counted(T, 'step')}"
-            + (f" (a frame every {T / len(shown):.2g} steps)" if every else "")
-            + f", solver {fs.solver}; "
-            f"cones: h_a = {ant.height:g} m, theta_a = {fs.opening_angle_deg:g} deg; "
-            f"delta = {fs.interference_limit_db:g} dBW")
+    note = replay_note(fs, _text(fs.name), f"{counted(K, 'target')}, {counted(N, 'agent')}", T, len(shown), ant)
     return dict(data=frames[0]["data"], layout=replay_layout(frames, fs, note), frames=frames)
 
 
