@@ -127,7 +127,9 @@ def test_the_pursuit_preset_is_paper_fig3_with_aim_pointing_and_the_options_that
                     ("fusion", "share"): "scans",
                     ("fusion", "report_spread"): 8.0, ("filter", "mode"): {"radius": 5.0, "mass": 0.2},
                     ("control", "plan_over"): "belief", ("control", "belief_spread"): 8.0,
-                    ("filter", "cue"): {"existence": 0.9, "position_std": 2.0, "velocity_std": 2.0, "velocity": "target"}}
+                    ("filter", "cue"): {"existence": 0.9, "position_std": 2.0, "velocity_std": 2.0, "velocity": "target"},
+                    # the exact search bounded by nodes, not wall time: runs repeat under any load
+                    ("control", "node_limit"): 2_000_000, ("control", "time_limit_s"): 3600.0}
 
 
 
