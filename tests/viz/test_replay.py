@@ -101,6 +101,21 @@ def _chromium(chromium, tmp_path, html, *args):
     return proc
 
 
+def probed_report(chromium, tmp_path, html: str) -> dict:
+    """Load the page ``html`` with the error hook and the probe in headless Chromium: no
+    JavaScript error, the plot drawn, and what the probe reported (frames, traces, title, ...)."""
+    probed = tmp_path / "probed.html"
+    probed.write_text(html.replace("<head>", "<head>" + ERROR_HOOK, 1).replace("</body>", PROBE + "</body>", 1))
+    proc = _chromium(chromium, tmp_path, probed, "--dump-dom")
+    dom = proc.stdout
+    assert 'id="js-errors"' not in dom, re.search(r'<pre id="js-errors">(.*?)</pre>', dom, re.S).group(1)
+    assert "Uncaught" not in proc.stderr
+    assert "plot-container" in dom
+    probe = re.search(r'<pre id="replay-probe">(.*?)</pre>', dom, re.S)
+    assert probe, "the probe never reported: the plot did not finish drawing"
+    return json.loads(probe.group(1).replace("&gt;", ">").replace("&lt;", "<").replace("&amp;", "&"))
+
+
 def test_cone_mesh_is_the_sensing_cone():
     """Apex at the agent, rim at h_a along the axis with radius h_a tan(theta_a/2) (docs/model.md)."""
     apex, point = np.array([10.0, 20.0, 30.0]), np.array([40.0, 0.0, 50.0])
@@ -222,18 +237,7 @@ def test_a_long_run_is_decimated_and_says_so(tmp_path):
 
 def test_replay_loads_in_chromium_without_errors(chromium_path, replay_html, run, tmp_path):
     steps, _, scenario = run
-    probed = tmp_path / "probed.html"
-    html = replay_html.read_text()
-    html = html.replace("<head>", "<head>" + ERROR_HOOK, 1).replace("</body>", PROBE + "</body>", 1)
-    probed.write_text(html)
-    proc = _chromium(chromium_path, tmp_path, probed, "--dump-dom")
-    dom = proc.stdout
-    assert 'id="js-errors"' not in dom, re.search(r'<pre id="js-errors">(.*?)</pre>', dom, re.S).group(1)
-    assert "Uncaught" not in proc.stderr
-    assert "plot-container" in dom
-    probe = re.search(r'<pre id="replay-probe">(.*?)</pre>', dom, re.S)
-    assert probe, "the probe never reported: the plot did not finish drawing"
-    report = json.loads(probe.group(1).replace("&gt;", ">").replace("&lt;", "<").replace("&amp;", "&"))
+    report = probed_report(chromium_path, tmp_path, replay_html.read_text())
     assert report["frames"] == scenario.steps
     assert report["title"].startswith(f"t = {scenario.steps} ")
     assert report["webgl"], "the 3D scene has no WebGL context"

@@ -5,13 +5,12 @@ a target that appears late and one that is downed; and a headless Chromium finds
 
 from __future__ import annotations
 
-import json
 import re
 
 import numpy as np
 import pytest
 from matplotlib.colors import to_hex
-from test_replay import ERROR_HOOK, PROBE, _chromium
+from test_replay import probed_report
 
 from swarm_scenarios import two_targets
 from trackjam.simulation.build import figure_settings
@@ -207,17 +206,7 @@ def test_a_target_id_is_shown_as_text_not_markup(run, tmp_path):
 
 
 def test_the_page_loads_in_chromium_and_shows_the_plot(chromium_path, page, tmp_path):
-    probed = tmp_path / "probed.html"
-    html = page.read_text()
-    probed.write_text(html.replace("<head>", "<head>" + ERROR_HOOK, 1).replace("</body>", PROBE + "</body>", 1))
-    proc = _chromium(chromium_path, tmp_path, probed, "--dump-dom")
-    dom = proc.stdout
-    assert 'id="js-errors"' not in dom, re.search(r'<pre id="js-errors">(.*?)</pre>', dom, re.S).group(1)
-    assert "Uncaught" not in proc.stderr
-    assert "plot-container" in dom
-    probe = re.search(r'<pre id="replay-probe">(.*?)</pre>', dom, re.S)
-    assert probe, "the probe never reported: the plot did not finish drawing"
-    report = json.loads(probe.group(1).replace("&gt;", ">").replace("&lt;", "<").replace("&amp;", "&"))
+    report = probed_report(chromium_path, tmp_path, page.read_text())
     assert report["frames"] == T and report["traces"] == 16
     assert report["title"].startswith(f"t = {T} ")
     assert report["webgl"], "the 3D scene has no WebGL context"
