@@ -9,20 +9,15 @@ Run: python docs/birth_mixed.py [OUT]   (default runs/experiment-birth-mixed; tw
 
 import sys
 
-from trackjam.experiments.definitions import (
-    EXPERIMENTS, HOLDING_METRICS, HOLDING_PANELS, SEED, Configuration, Experiment)
+from trackjam.experiments.definitions import EXPERIMENTS, Experiment, against_preset
 
 NAME = "birth-mixed"
 TRIALS, SEED_OF_EXPERIMENT = 300, 44
 
 
 def experiment() -> Experiment:
-    return Experiment(
-        NAME, "pursuit against pursuit with the mixed birth kept inside the area",
-        (Configuration(1, "pursuit", {}), Configuration(2, "pursuit + filter.birth: mixed", {"filter.birth": "mixed"})),
-        "birth-mixed.png", trials=SEED, preset="pursuit", pairs=((1, 2, "pursuit -> mixed birth"),),
-        panels=HOLDING_PANELS, metrics=HOLDING_METRICS, counts=EXPERIMENTS["holding"].counts,
-    )
+    return against_preset(NAME, "pursuit against pursuit with the mixed birth kept inside the area",
+                          "pursuit + filter.birth: mixed", {"filter.birth": "mixed"}, "pursuit -> mixed birth")
 
 
 if __name__ == "__main__":  # the workers are spawned and import this file again

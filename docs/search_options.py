@@ -10,8 +10,7 @@ Run: python docs/search_options.py [OUT]   (default runs/experiment-search-optio
 
 import sys
 
-from trackjam.experiments.definitions import (
-    EXPERIMENTS, HOLDING_METRICS, HOLDING_PANELS, SEED, Configuration, Experiment)
+from trackjam.experiments.definitions import EXPERIMENTS, Experiment, against_preset
 
 NAME = "search-options"
 TRIALS, SEED_OF_EXPERIMENT = 300, 41
@@ -19,13 +18,9 @@ TOGETHER = {"filter.team_proposals": True, "control.belief_at_least": 1, "filter
 
 
 def experiment() -> Experiment:
-    return Experiment(
-        NAME, "pursuit against pursuit with three search options together",
-        (Configuration(1, "pursuit", {}),
-         Configuration(2, "team_proposals + belief_at_least 1 + per_particle", TOGETHER)),
-        "search-options.png", trials=SEED, preset="pursuit", pairs=((1, 2, "pursuit -> the three together"),),
-        panels=HOLDING_PANELS, metrics=HOLDING_METRICS, counts=EXPERIMENTS["holding"].counts,
-    )
+    return against_preset(NAME, "pursuit against pursuit with three search options together",
+                          "team_proposals + belief_at_least 1 + per_particle", TOGETHER,
+                          "pursuit -> the three together")
 
 
 if __name__ == "__main__":  # the workers are spawned and import this file again

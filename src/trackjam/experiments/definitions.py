@@ -201,6 +201,19 @@ def _on_fig3(name: str, description: str, rows: tuple[tuple[str, dict[str, Any]]
                       base_settings={"control.solver": "exact", **(settings or {})}, pairs=tuple(pairs))
 
 
+def against_preset(name: str, description: str, label: str, settings: dict[str, Any], pair: str,
+                   preset: str = "pursuit") -> Experiment:
+    """``preset`` against ``preset`` with ``settings`` (labelled ``label``), paired (``pair``) on the
+    same SEED trials, with the track quality, re-acquisition and the figure of `holding`: the
+    shape of the docs scripts that measure one change to the preset (docs/search_options.py,
+    docs/birth_mixed.py), which register it under ``name`` and run it."""
+    return Experiment(
+        name, description, (Configuration(1, preset, {}), Configuration(2, label, settings)), f"{name}.png",
+        trials=SEED, preset=preset, pairs=((1, 2, pair),), panels=HOLDING_PANELS, metrics=HOLDING_METRICS,
+        counts=COUNTS,
+    )
+
+
 EXPERIMENTS: dict[str, Experiment] = {
     "table1": _table1(),
     "constraints": Experiment(
